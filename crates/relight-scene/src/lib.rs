@@ -1,0 +1,13 @@
+//! # relight-scene: everything a scene is made of
+//!
+//! Mesh and environment IO (`io`), triangle meshes ([`mesh`]), materials and their BRDFs
+//! ([`material`]), cameras ([`camera`]), the procedural sun-and-sky (`sky`) and ray casting
+//! ([`accel`]). Conventions are those of `relight_sphere` (Mitsuba 3's, +Y up).
+
+pub mod accel;
+pub mod camera;
+pub mod material;
+pub mod mesh;
+pub mod scene;
+
+pub use relight_sphere::{Mat3, Vec2, Vec3};

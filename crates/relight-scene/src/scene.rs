@@ -1,0 +1,58 @@
+//! A scene in memory: one merged triangle mesh, its materials, the environment and a camera.
+
+use crate::camera::Camera;
+use crate::material::Material;
+use crate::mesh::TriMesh;
+use crate::{Mat3, Vec3};
+use relight_sphere::envmap::EnvMap;
+
+/// Distant environment lighting: an environment map, a scale and a rotation about +Y.
+///
+/// Matches Mitsuba 3's `envmap` emitter with `scale` and
+/// `to_world = rotate(axis=[0, 1, 0], angle=rotate_y_deg)`: the radiance arriving from world
+/// direction `d` is `scale * map(env_from_world * d)`.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    /// The map, in its own layout.
+    pub map: EnvMap,
+    /// Radiance multiplier.
+    pub scale: f32,
+    /// Rotation of the map about world +Y, degrees (right-handed).
+    pub rotate_y_deg: f32,
+}
+
+impl Environment {
+    /// An unrotated environment of scale 1.
+    pub fn new(map: EnvMap) -> Self {
+        Environment { map, scale: 1.0, rotate_y_deg: 0.0 }
+    }
+
+    /// Rotation taking world directions to the map's own frame.
+    pub fn env_from_world(&self) -> Mat3 {
+        Mat3::from_rotation_y(-self.rotate_y_deg.to_radians())
+    }
+
+    /// Rotation taking the map's directions to world directions.
+    pub fn world_from_env(&self) -> Mat3 {
+        Mat3::from_rotation_y(self.rotate_y_deg.to_radians())
+    }
+
+    /// Radiance arriving from world direction `dir` (unit).
+    #[inline]
+    pub fn radiance(&self, dir: Vec3) -> Vec3 {
+        self.map.eval(self.env_from_world() * dir) * self.scale
+    }
+}
+
+/// A complete scene: geometry with per-triangle material ids, materials, lighting, camera.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// All shapes merged into one mesh (`material_ids` index `materials`).
+    pub mesh: TriMesh,
+    /// Materials.
+    pub materials: Vec<Material>,
+    /// Distant lighting.
+    pub env: Environment,
+    /// The camera.
+    pub camera: Camera,
+}
