@@ -9,5 +9,6 @@ pub mod camera;
 pub mod material;
 pub mod mesh;
 pub mod scene;
+pub mod testdata;
 
 pub use relight_sphere::{Mat3, Vec2, Vec3};
