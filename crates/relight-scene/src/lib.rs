@@ -9,6 +9,7 @@ pub mod camera;
 pub mod material;
 pub mod mesh;
 pub mod scene;
+pub mod shapes;
 pub mod testdata;
 
 pub use relight_sphere::{Mat3, Vec2, Vec3};

@@ -5,6 +5,7 @@
 //! Hits report `t` along the (not necessarily unit) direction, the triangle index and
 //! Embree-convention barycentrics `(u, v)`: point = `(1-u-v) a + u b + v c`.
 
+use crate::mesh::TriMesh;
 use crate::Vec3;
 
 /// A ray `origin + t * dir`, `t` in `[tmin, tmax]`.
@@ -62,6 +63,104 @@ pub trait RayCaster: Send + Sync {
             *o = self.occluded(r);
         }
     }
+    /// Closest hits of many rays; `out[i] = intersect(&rays[i])`. Back-ends may override this
+    /// with stream traversal.
+    fn intersect_many(&self, rays: &[Ray], out: &mut [Option<Hit>]) {
+        debug_assert_eq!(rays.len(), out.len());
+        for (r, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.intersect(r);
+        }
+    }
     /// Short name of the back-end (for logs and benchmarks).
     fn name(&self) -> &'static str;
+}
+
+pub mod bench;
+pub mod bvh;
+#[cfg(feature = "embree")]
+pub mod embree;
+
+/// The ray-casting back-ends (a closed set: match it exhaustively).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Backend {
+    /// relight's own 8-wide BVH ([`bvh::Bvh`], pure Rust, SAH quality preset).
+    Bvh,
+    /// Embree 3 through relight's own FFI ([`embree::EmbreeScene`]); needs feature `embree`.
+    Embree,
+}
+
+impl Backend {
+    /// Every back-end compiled into this build, fastest first.
+    pub fn available() -> &'static [Backend] {
+        #[cfg(feature = "embree")]
+        {
+            &[Backend::Embree, Backend::Bvh]
+        }
+        #[cfg(not(feature = "embree"))]
+        {
+            &[Backend::Bvh]
+        }
+    }
+}
+
+/// Build a ray caster over `mesh` with `backend`.
+///
+/// # Errors
+/// An empty mesh (no triangle with finite, non-degenerate corners), out-of-range vertex
+/// indices, an Embree device error, or `Backend::Embree` without the `embree` feature.
+pub fn build(mesh: &TriMesh, backend: Backend) -> Result<Box<dyn RayCaster>, String> {
+    match backend {
+        Backend::Bvh => Ok(Box::new(bvh::Bvh::build(mesh, bvh::BuildPreset::Quality)?)),
+        #[cfg(feature = "embree")]
+        Backend::Embree => Ok(Box::new(embree::EmbreeScene::build(mesh)?)),
+        #[cfg(not(feature = "embree"))]
+        Backend::Embree => Err("relight was built without the `embree` feature".into()),
+    }
+}
+
+/// Build the fastest available ray caster: Embree when the `embree` feature is on (falling
+/// back to the own BVH if Embree fails), otherwise the own BVH.
+///
+/// # Panics
+/// If no back-end can be built (e.g. an empty mesh); use [`build`] to handle that.
+pub fn build_default(mesh: &TriMesh) -> Box<dyn RayCaster> {
+    let mut last_err = String::new();
+    for &b in Backend::available() {
+        match build(mesh, b) {
+            Ok(c) => return c,
+            Err(e) => last_err = e,
+        }
+    }
+    panic!("no ray-casting back-end could be built: {last_err}");
+}
+
+/// Move a ray origin `p` on a surface with geometric normal `ng` off that surface, to the side
+/// `dir` points to, so the new ray does not re-hit the surface it starts on.
+///
+/// Method of Wächter & Binder 2019, "A Fast and Robust Method for Avoiding Self-Intersection"
+/// (Ray Tracing Gems, ch. 6): offset in integer ULPs proportional to the normal (so the
+/// offset scales with the floating-point spacing at `p`), and by a small fixed distance near
+/// the origin where ULPs are tiny. Use `tmin = 0` with the returned origin.
+///
+/// # Panics
+/// Debug builds: if `ng` is not finite.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+    debug_assert!(ng.is_finite(), "offset_ray_origin: non-finite normal {ng:?}");
+    // Constants of the paper: below |x| < ORIGIN use a fixed float offset, else integer ULPs.
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let n = if ng.dot(dir) < 0.0 { -ng } else { ng };
+    let offset = |x: f32, nx: f32| -> f32 {
+        if x.abs() < ORIGIN {
+            return x + FLOAT_SCALE * nx;
+        }
+        let of_i = (INT_SCALE * nx) as i32;
+        // Moving the bits away from zero grows |x|; towards zero shrinks it.
+        let bits = x.to_bits() as i32;
+        let moved = if x < 0.0 { bits.wrapping_sub(of_i) } else { bits.wrapping_add(of_i) };
+        f32::from_bits(moved as u32)
+    };
+    Vec3::new(offset(p.x, n.x), offset(p.y, n.y), offset(p.z, n.z))
 }

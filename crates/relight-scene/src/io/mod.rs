@@ -1,0 +1,162 @@
+//! Reading and writing scenes, meshes, images and environments.
+//!
+//! * meshes: [`obj`] (+ MTL), [`ply`] (ASCII and binary; binary write), [`gltf`] (`.gltf`,
+//!   `.glb`), all through [`load_mesh`];
+//! * images: [`image`] (Radiance `.hdr`, OpenEXR, 8-bit sRGB PNG);
+//! * environments: [`env`] (latlong, vertical cross, angular probe) through [`load_env`].
+//!
+//! Every reader checks sizes announced by a file against the bytes it actually has before
+//! allocating, and returns [`SceneError`] (never panics) on bad input. Every writer is atomic:
+//! it writes `<name>.tmp-<pid>` in the destination folder and renames it over `<name>`.
+
+pub mod env;
+pub mod gltf;
+pub mod image;
+pub mod obj;
+pub mod ply;
+
+pub use env::load_env;
+pub use image::{read_image, write_exr, write_hdr, write_png_srgb8};
+
+use crate::error::SceneError;
+use crate::material::Material;
+use crate::mesh::TriMesh;
+use crate::meshops;
+use std::path::{Path, PathBuf};
+
+/// A mesh read from a file with its materials (`mesh.material_ids` index `materials`).
+#[derive(Clone, Debug)]
+pub struct LoadedMesh {
+    /// The triangles; normals are present (read or computed) and unit.
+    pub mesh: TriMesh,
+    /// Materials; never empty.
+    pub materials: Vec<Material>,
+    /// Non-fatal problems (missing MTL file, dropped degenerate triangles, ...), one per line.
+    pub warnings: Vec<String>,
+}
+
+/// Load a mesh, dispatching on the extension (`obj`, `ply`, `gltf`, `glb`; case-insensitive).
+///
+/// After parsing, degenerate triangles are dropped (their number is reported in
+/// `warnings`), missing normals are computed (angle-weighted, [`meshops::smooth_normals`]),
+/// and the result must pass [`meshops::validate`]; an empty mesh is an error.
+pub fn load_mesh(path: &Path) -> Result<LoadedMesh, SceneError> {
+    let ext = extension(path);
+    let mut loaded = match ext.as_str() {
+        "obj" => obj::read_obj(path)?,
+        "ply" => ply::read_ply(path)?,
+        "gltf" | "glb" => gltf::read_gltf(path)?,
+        _ => {
+            return Err(SceneError::unsupported(
+                path,
+                format!("mesh extension '{ext}' (expected obj, ply, gltf or glb)"),
+            ))
+        }
+    };
+    finish_mesh(path, &mut loaded)?;
+    Ok(loaded)
+}
+
+/// Common post-processing of every loader (see [`load_mesh`]).
+pub(crate) fn finish_mesh(path: &Path, loaded: &mut LoadedMesh) -> Result<(), SceneError> {
+    let dropped = meshops::drop_degenerate(&mut loaded.mesh);
+    if dropped > 0 {
+        loaded
+            .warnings
+            .push(format!("{}: dropped {dropped} degenerate triangles", path.display()));
+    }
+    meshops::check_non_empty(&loaded.mesh).map_err(|m| SceneError::invalid_mesh(path, m))?;
+    if loaded.mesh.normals.len() != loaded.mesh.positions.len() {
+        loaded.mesh.normals = meshops::smooth_normals(&loaded.mesh, meshops::NormalWeighting::Angle);
+    }
+    if loaded.materials.is_empty() {
+        loaded.materials.push(Material::default());
+    }
+    let n_mat = loaded.materials.len() as u32;
+    if let Some(bad) = loaded.mesh.material_ids.iter().find(|&&m| m >= n_mat) {
+        return Err(SceneError::invalid_mesh(
+            path,
+            format!("material id {bad} out of range ({n_mat} materials)"),
+        ));
+    }
+    meshops::validate(&loaded.mesh).map_err(|m| SceneError::invalid_mesh(path, m))
+}
+
+/// Lower-case extension of `path` ("" if none).
+pub(crate) fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+/// Read a whole file.
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, SceneError> {
+    std::fs::read(path).map_err(|e| SceneError::io(path, e))
+}
+
+/// Write a file atomically: `write` fills `<name>.tmp-<pid>` beside `path`, which is then
+/// renamed to `path` (the temporary is removed on failure).
+pub(crate) fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), SceneError>,
+) -> Result<(), SceneError> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| SceneError::malformed(path, "output path has no file name"))?;
+    let mut tmp_name = name.to_os_string();
+    tmp_name.push(format!(".tmp-{}", std::process::id()));
+    let tmp: PathBuf = path.with_file_name(tmp_name);
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| SceneError::io(path, e)));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+pub(crate) mod test_util {
+    use std::path::PathBuf;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// A fresh, unique temporary folder for one test.
+    pub fn temp_dir(tag: &str) -> PathBuf {
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "relight-scene-{}-{}-{}",
+            tag,
+            std::process::id(),
+            N.fetch_add(1, Ordering::Relaxed)
+        ));
+        std::fs::create_dir_all(&dir).expect("create temp dir");
+        dir
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn missing_file_is_an_io_error_naming_the_file() {
+        let p = test_util::temp_dir("missing").join("nope.obj");
+        let e = load_mesh(&p).unwrap_err();
+        assert!(matches!(e, SceneError::Io { .. }), "{e}");
+        assert!(e.to_string().contains("nope.obj"), "{e}");
+    }
+
+    #[test]
+    fn unknown_extension_is_refused() {
+        let e = load_mesh(Path::new("mesh.stl")).unwrap_err();
+        assert!(e.to_string().contains("stl"), "{e}");
+    }
+
+    #[test]
+    fn atomic_write_leaves_no_temporary() {
+        let dir = test_util::temp_dir("atomic");
+        let p = dir.join("out.bin");
+        write_atomic(&p, |t| std::fs::write(t, b"abc").map_err(|e| SceneError::io(t, e))).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"abc");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+    }
+}

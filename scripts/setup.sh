@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# One-time, idempotent set-up of what relight needs beyond the Rust toolchain, on Debian 12:
+#   - libembree-dev : Embree 3, relight's default ray-casting back-end and benchmark baseline
+#   - libllvm19     : lets Mitsuba 3 use its fast `llvm_ad_rgb` variant (else `scalar_rgb`)
+#   - a Python venv with Mitsuba 3 + numpy at ${RELIGHT_VENV:-$HOME/.cache/relight/venv},
+#     used only for ground truth (tools/mitsuba_reference.py and the tests that compare with it)
+# Each step is skipped when already done. Set RELIGHT_SKIP_MITSUBA=1 to skip the venv.
+set -euo pipefail
+
+pkgs=(libembree-dev libllvm19)
+missing=()
+for p in "${pkgs[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    echo "setup: installing ${missing[*]} with apt-get"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+if [ "${RELIGHT_SKIP_MITSUBA:-0}" != 1 ]; then
+    venv="${RELIGHT_VENV:-$HOME/.cache/relight/venv}"
+    if ! "$venv/bin/python" -c "import mitsuba, numpy" 2>/dev/null; then
+        echo "setup: creating $venv with mitsuba and numpy (pip)"
+        python3 -m venv "$venv"
+        "$venv/bin/pip" install -q --upgrade pip
+        "$venv/bin/pip" install -q "mitsuba>=3.5,<4" numpy
+    fi
+fi
+echo "setup: ok"
