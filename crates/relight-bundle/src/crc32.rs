@@ -109,7 +109,9 @@ mod tests {
 
     #[test]
     fn fast_path_matches_bitwise_reference_and_is_incremental() {
-        let data: Vec<u8> = (0..1000u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+        let data: Vec<u8> = (0..1000u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect();
         for len in [0, 1, 7, 8, 9, 63, 64, 65, 999, 1000] {
             assert_eq!(crc32(&data[..len]), crc32_slow(&data[..len]), "len {len}");
         }

@@ -137,7 +137,11 @@ impl Tensor {
     pub fn from_f32(shape: Vec<usize>, values: &[f32]) -> Self {
         debug_assert_eq!(shape.iter().product::<usize>(), values.len());
         let bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        Tensor { dtype: DType::F32, shape, bytes }
+        Tensor {
+            dtype: DType::F32,
+            shape,
+            bytes,
+        }
     }
 
     /// An f16 tensor rounded from f32 values (round to nearest even).
@@ -147,14 +151,22 @@ impl Tensor {
             .iter()
             .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
             .collect();
-        Tensor { dtype: DType::F16, shape, bytes }
+        Tensor {
+            dtype: DType::F16,
+            shape,
+            bytes,
+        }
     }
 
     /// A u32 tensor.
     pub fn from_u32(shape: Vec<usize>, values: &[u32]) -> Self {
         debug_assert_eq!(shape.iter().product::<usize>(), values.len());
         let bytes = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        Tensor { dtype: DType::U32, shape, bytes }
+        Tensor {
+            dtype: DType::U32,
+            shape,
+            bytes,
+        }
     }
 
     /// Number of elements.
@@ -262,8 +274,14 @@ impl Bundle {
             }
         }
         meta.insert("format".into(), Value::from(FORMAT_NAME));
-        meta.insert("format_version".into(), Value::from(FORMAT_VERSION.to_string()));
-        meta.insert("data_crc32".into(), Value::from(format!("{:08x}", crc32(&data))));
+        meta.insert(
+            "format_version".into(),
+            Value::from(FORMAT_VERSION.to_string()),
+        );
+        meta.insert(
+            "data_crc32".into(),
+            Value::from(format!("{:08x}", crc32(&data))),
+        );
         meta.insert("header_crc32".into(), Value::from("00000000"));
         header.insert("__metadata__".into(), Value::Object(meta));
         let mut h = serde_json::to_string(&Value::Object(header)).expect("JSON of strings");
@@ -283,7 +301,10 @@ impl Bundle {
 
     /// Parse and verify bytes read from `path` (used in error messages only).
     pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Bundle, BundleError> {
-        let bad = |msg: String| BundleError::Invalid { path: path.to_path_buf(), msg };
+        let bad = |msg: String| BundleError::Invalid {
+            path: path.to_path_buf(),
+            msg,
+        };
         if bytes.len() < 8 {
             return Err(bad(format!(
                 "truncated: {} bytes, too short for a bundle header",
@@ -300,17 +321,24 @@ impl Bundle {
         let hbytes = &bytes[8..8 + n as usize];
         let hstr = std::str::from_utf8(hbytes)
             .map_err(|_| bad("header is not UTF-8: not a relight bundle".into()))?;
-        let header: Value = serde_json::from_str(hstr)
-            .map_err(|e| bad(format!("header is not valid JSON ({e}): not a relight bundle or corrupt")))?;
+        let header: Value = serde_json::from_str(hstr).map_err(|e| {
+            bad(format!(
+                "header is not valid JSON ({e}): not a relight bundle or corrupt"
+            ))
+        })?;
         let Value::Object(mut header) = header else {
             return Err(bad("header is not a JSON object".into()));
         };
         let Some(Value::Object(meta)) = header.remove("__metadata__") else {
-            return Err(bad("no __metadata__: a safetensors file but not a relight bundle".into()));
+            return Err(bad(
+                "no __metadata__: a safetensors file but not a relight bundle".into(),
+            ));
         };
         let get = |k: &str| meta.get(k).and_then(Value::as_str);
         if get("format") != Some(FORMAT_NAME) {
-            return Err(bad("metadata 'format' is not 'relight-bundle': not a relight bundle".into()));
+            return Err(bad(
+                "metadata 'format' is not 'relight-bundle': not a relight bundle".into(),
+            ));
         }
         match get("format_version").map(str::parse::<u32>) {
             Some(Ok(FORMAT_VERSION)) => {}
@@ -392,7 +420,11 @@ impl Bundle {
             }
             out.tensors.insert(
                 name.clone(),
-                Tensor { dtype, shape, bytes: data[b as usize..e as usize].to_vec() },
+                Tensor {
+                    dtype,
+                    shape,
+                    bytes: data[b as usize..e as usize].to_vec(),
+                },
             );
         }
         Ok(out)
@@ -405,8 +437,10 @@ impl Bundle {
 
     /// Read and verify a bundle.
     pub fn read(path: &Path) -> Result<Bundle, BundleError> {
-        let bytes = std::fs::read(path)
-            .map_err(|source| BundleError::Io { path: path.to_path_buf(), source })?;
+        let bytes = std::fs::read(path).map_err(|source| BundleError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Bundle::from_bytes(path, &bytes)
     }
 }
@@ -414,7 +448,10 @@ impl Bundle {
 /// Write `bytes` to `path` atomically: a temporary sibling file, flushed and synced, then
 /// renamed over `path`. On error the temporary file is removed and `path` is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BundleError> {
-    let io = |source| BundleError::Io { path: path.to_path_buf(), source };
+    let io = |source| BundleError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let file_name = path.file_name().ok_or_else(|| BundleError::Invalid {
         path: path.to_path_buf(),
         msg: "not a file path".into(),
@@ -441,10 +478,17 @@ mod tests {
     fn sample() -> Bundle {
         let mut b = Bundle::new();
         b.metadata.insert("method".into(), "sh".into());
-        b.metadata.insert("settings".into(), r#"{"order":5}"#.into());
-        b.insert("positions", Tensor::from_f32(vec![2, 3], &[0.0, 1.0, 2.0, 3.0, 4.0, 5.5]));
+        b.metadata
+            .insert("settings".into(), r#"{"order":5}"#.into());
+        b.insert(
+            "positions",
+            Tensor::from_f32(vec![2, 3], &[0.0, 1.0, 2.0, 3.0, 4.0, 5.5]),
+        );
         b.insert("indices", Tensor::from_u32(vec![1, 3], &[0, 1, 1]));
-        b.insert("transfer", Tensor::from_f32_as_f16(vec![4], &[0.5, -1.0, 1e-3, 65504.0]));
+        b.insert(
+            "transfer",
+            Tensor::from_f32_as_f16(vec![4], &[0.5, -1.0, 1e-3, 65504.0]),
+        );
         b
     }
 
@@ -462,7 +506,10 @@ mod tests {
         let r = Bundle::read(&p).unwrap();
         assert_eq!(r, b);
         let f16 = r.tensors["transfer"].to_f32().unwrap();
-        assert_eq!(f16, vec![0.5, -1.0, half::f16::from_f32(1e-3).to_f32(), 65504.0]);
+        assert_eq!(
+            f16,
+            vec![0.5, -1.0, half::f16::from_f32(1e-3).to_f32(), 65504.0]
+        );
         // No temporary file is left behind.
         let leftovers: Vec<_> = std::fs::read_dir(p.parent().unwrap())
             .unwrap()
@@ -490,7 +537,10 @@ mod tests {
         for i in 0..good.len() {
             let mut bad = good.clone();
             bad[i] ^= 0x20;
-            assert!(Bundle::from_bytes(p, &bad).is_err(), "flip at byte {i} not detected");
+            assert!(
+                Bundle::from_bytes(p, &bad).is_err(),
+                "flip at byte {i} not detected"
+            );
         }
     }
 
@@ -517,17 +567,23 @@ mod tests {
         z[c..c + 8].copy_from_slice(b"00000000");
         let crc = format!("{:08x}", crc32(&z));
         bytes[8 + c..8 + c + 8].copy_from_slice(crc.as_bytes());
-        let e = Bundle::from_bytes(Path::new("v.relight"), &bytes).unwrap_err().to_string();
+        let e = Bundle::from_bytes(Path::new("v.relight"), &bytes)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("version 9") && e.contains("re-bake"), "{e}");
     }
 
     #[test]
     fn missing_file_and_absurd_header_are_errors() {
-        let e = Bundle::read(Path::new("/nonexistent/x.relight")).unwrap_err().to_string();
+        let e = Bundle::read(Path::new("/nonexistent/x.relight"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("/nonexistent/x.relight"));
         let mut bytes = vec![0u8; 16];
         bytes[..8].copy_from_slice(&u64::MAX.to_le_bytes());
-        let e = Bundle::from_bytes(Path::new("a.relight"), &bytes).unwrap_err().to_string();
+        let e = Bundle::from_bytes(Path::new("a.relight"), &bytes)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("absurd"), "{e}");
     }
 

@@ -34,7 +34,9 @@ pub fn describe_tonemap(t: &ToneMap) -> String {
     match t {
         ToneMap::Linear { exposure } => format!("linear, clamp({exposure} c), then sRGB"),
         ToneMap::Reinhard { exposure } => format!("Reinhard x/(1+x), x = {exposure} c, then sRGB"),
-        ToneMap::Exponential { gamma } => format!("exponential 1 - exp(-{gamma} c) (thesis 4.4), then sRGB"),
+        ToneMap::Exponential { gamma } => {
+            format!("exponential 1 - exp(-{gamma} c) (thesis 4.4), then sRGB")
+        }
     }
 }
 
@@ -46,7 +48,10 @@ pub fn write_image(path: &Path, img: &Image, tm: &ToneMap) -> Result<()> {
         "exr" => imgio::write_exr(path, img.width, img.height, &img.pixels)?,
         "hdr" => imgio::write_hdr(path, img.width, img.height, &img.pixels)?,
         "png" => imgio::write_png_srgb8(path, img.width, img.height, &tm.to_srgb8(img))?,
-        _ => bail!("{}: unknown image extension '{ext}' (exr, hdr, png)", path.display()),
+        _ => bail!(
+            "{}: unknown image extension '{ext}' (exr, hdr, png)",
+            path.display()
+        ),
     }
     Ok(())
 }
@@ -54,7 +59,11 @@ pub fn write_image(path: &Path, img: &Image, tm: &ToneMap) -> Result<()> {
 /// Read an `.exr` or `.hdr` image.
 pub fn read_image(path: &Path) -> Result<Image> {
     let (w, h, px) = imgio::read_image(path)?;
-    Ok(Image { width: w, height: h, pixels: px })
+    Ok(Image {
+        width: w,
+        height: h,
+        pixels: px,
+    })
 }
 
 /// Lower-case extension of a path ("" when none).
@@ -64,28 +73,20 @@ pub fn ext_of(path: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// A progress bar in relight's style (hidden when stderr is not a terminal).
-pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
-    let pb = indicatif::ProgressBar::new(len);
-    pb.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
-        )
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    pb.set_prefix(what.to_string());
-    pb
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn tonemaps_parse() {
-        assert_eq!(parse_tonemap("exp:2").unwrap(), ToneMap::Exponential { gamma: 2.0 });
-        assert_eq!(parse_tonemap("linear").unwrap(), ToneMap::Linear { exposure: 1.0 });
+        assert_eq!(
+            parse_tonemap("exp:2").unwrap(),
+            ToneMap::Exponential { gamma: 2.0 }
+        );
+        assert_eq!(
+            parse_tonemap("linear").unwrap(),
+            ToneMap::Linear { exposure: 1.0 }
+        );
         assert!(parse_tonemap("exp:-1").is_err());
         assert!(parse_tonemap("foo").is_err());
     }

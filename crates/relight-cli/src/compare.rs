@@ -24,14 +24,28 @@ pub fn run(a: Args) -> Result<()> {
     ensure!(
         ia.width == ib.width && ia.height == ib.height,
         "{} is {}x{} but {} is {}x{}: images must have the same size",
-        a.a.display(), ia.width, ia.height, a.b.display(), ib.width, ib.height
+        a.a.display(),
+        ia.width,
+        ia.height,
+        a.b.display(),
+        ib.width,
+        ib.height
     );
     let m = compare::metrics(&ia, &ib, None);
-    println!("{} vs {} ({}x{})", a.a.display(), a.b.display(), ia.width, ia.height);
+    println!(
+        "{} vs {} ({}x{})",
+        a.a.display(),
+        a.b.display(),
+        ia.width,
+        ia.height
+    );
     println!("  RMSE                         {:.6}", m.rmse);
     println!("  relative RMSE                {:.4} %", 100.0 * m.rel_rmse);
     println!("  PSNR                         {:.2} dB", m.psnr);
-    println!("  abs. luminance error, mean   {:.6}  (thesis Table 5.1 metric)", m.mean_abs_lum_err);
+    println!(
+        "  abs. luminance error, mean   {:.6}  (thesis Table 5.1 metric)",
+        m.mean_abs_lum_err
+    );
     println!("  abs. luminance error, stddev {:.6}", m.std_abs_lum_err);
     let out = a.heatmap.unwrap_or_else(|| {
         let stem_a = a.a.file_stem().unwrap_or_default().to_string_lossy();

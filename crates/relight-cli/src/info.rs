@@ -16,18 +16,31 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let b = Bundle::read(&a.bundle)?;
     let size = std::fs::metadata(&a.bundle).map(|m| m.len()).unwrap_or(0);
-    println!("{}: relight bundle, format version {}, {:.2} MiB, checksums OK",
-        a.bundle.display(), relight_bundle::FORMAT_VERSION, size as f64 / (1 << 20) as f64);
+    println!(
+        "{}: relight bundle, format version {}, {:.2} MiB, checksums OK",
+        a.bundle.display(),
+        relight_bundle::FORMAT_VERSION,
+        size as f64 / (1 << 20) as f64
+    );
     for (k, v) in &b.metadata {
         if v.len() > 200 {
-            println!("  {k}: {}... ({} chars)", &v[..v.char_indices().nth(200).map_or(v.len(), |c| c.0)], v.len());
+            println!(
+                "  {k}: {}... ({} chars)",
+                &v[..v.char_indices().nth(200).map_or(v.len(), |c| c.0)],
+                v.len()
+            );
         } else {
             println!("  {k}: {v}");
         }
     }
     println!("  tensors:");
     for (name, t) in &b.tensors {
-        println!("    {name:<16} {:<4} {:?} ({} bytes)", t.dtype.name(), t.shape, t.bytes.len());
+        println!(
+            "    {name:<16} {:<4} {:?} ({} bytes)",
+            t.dtype.name(),
+            t.shape,
+            t.bytes.len()
+        );
     }
     Ok(())
 }
@@ -62,7 +75,11 @@ pub fn project(a: ProjectArgs) -> Result<()> {
     };
     let map = relight_scene::io::load_env(&a.env, layout)?;
     let c = sh::project_env(&map, a.order);
-    println!("# SH projection of {} (order {}, real orthonormal, R&H 2001 basis on world x,y,z)", a.env.display(), a.order);
+    println!(
+        "# SH projection of {} (order {}, real orthonormal, R&H 2001 basis on world x,y,z)",
+        a.env.display(),
+        a.order
+    );
     println!("# l  m        r            g            b");
     for l in 0..a.order as i32 {
         for m in -l..=l {

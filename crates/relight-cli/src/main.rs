@@ -11,6 +11,7 @@ mod demo;
 mod info;
 mod reference;
 mod render;
+mod store;
 
 use clap::{Parser, Subcommand};
 
@@ -50,7 +51,10 @@ enum Cmd {
 fn main() {
     let cli = Cli::parse();
     if let Some(t) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global() {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(t.max(1))
+            .build_global()
+        {
             eprintln!("relight: warning: --threads ignored: {e}");
         }
     }

@@ -54,7 +54,11 @@ pub fn metrics(a: &Image, b: &Image, mask: Option<&[bool]>) -> Metrics {
         b.height
     );
     if let Some(m) = mask {
-        assert_eq!(m.len(), a.pixels.len(), "mask length must be width * height");
+        assert_eq!(
+            m.len(),
+            a.pixels.len(),
+            "mask length must be width * height"
+        );
     }
     let (mut n, mut se, mut sb2, mut peak, mut max_abs) = (0usize, 0f64, 0f64, 0f64, 0f64);
     let (mut sl, mut sl2) = (0f64, 0f64);
@@ -63,11 +67,13 @@ pub fn metrics(a: &Image, b: &Image, mask: Option<&[bool]>) -> Metrics {
             continue;
         }
         n += 1;
-        let d = (pa - pb).as_dvec3();
-        se += d.length_squared();
-        sb2 += pb.as_dvec3().length_squared();
+        for c in 0..3 {
+            let d = pa[c] as f64 - pb[c] as f64;
+            se += d * d;
+            sb2 += pb[c] as f64 * pb[c] as f64;
+            max_abs = max_abs.max(d.abs());
+        }
         peak = peak.max(pb.max_element() as f64);
-        max_abs = max_abs.max(d.abs().max_element());
         let dl = (luminance(pa) as f64 - luminance(pb) as f64).abs();
         sl += dl;
         sl2 += dl * dl;
@@ -88,7 +94,11 @@ pub fn metrics(a: &Image, b: &Image, mask: Option<&[bool]>) -> Metrics {
     let rmse = (se / samples).sqrt();
     let rms_b = (sb2 / samples).sqrt();
     let rel_rmse = if rmse == 0.0 { 0.0 } else { rmse / rms_b };
-    let psnr = if rmse == 0.0 { f64::INFINITY } else { 20.0 * (peak / rmse).log10() };
+    let psnr = if rmse == 0.0 {
+        f64::INFINITY
+    } else {
+        20.0 * (peak / rmse).log10()
+    };
     let mean = sl / n as f64;
     let var = (sl2 / n as f64 - mean * mean).max(0.0);
     Metrics {
@@ -105,8 +115,8 @@ pub fn metrics(a: &Image, b: &Image, mask: Option<&[bool]>) -> Metrics {
 /// The default full scale of [`heatmap`]: a quarter of the reference's mean luminance (at least
 /// `1e-6`). An error of this size maps to the top of the ramp; use it for the legend.
 pub fn heatmap_scale(b: &Image) -> f32 {
-    let mean = b.pixels.iter().map(|&c| luminance(c) as f64).sum::<f64>()
-        / b.pixels.len().max(1) as f64;
+    let mean =
+        b.pixels.iter().map(|&c| luminance(c) as f64).sum::<f64>() / b.pixels.len().max(1) as f64;
     (0.25 * mean).max(1e-6) as f32
 }
 
@@ -123,7 +133,10 @@ pub fn heatmap(a: &Image, b: &Image) -> Vec<[u8; 3]> {
 /// # Panics
 /// If the images differ in size; debug builds also if `full_scale <= 0`.
 pub fn heatmap_with_scale(a: &Image, b: &Image, full_scale: f32) -> Vec<[u8; 3]> {
-    assert!(a.width == b.width && a.height == b.height, "image sizes differ");
+    assert!(
+        a.width == b.width && a.height == b.height,
+        "image sizes differ"
+    );
     debug_assert!(full_scale > 0.0, "heat map full scale must be positive");
     let lut = ramp_lut();
     a.pixels
@@ -220,8 +233,16 @@ mod tests {
 
     #[test]
     fn constant_offset_has_known_metrics() {
-        let b = Image { width: 4, height: 4, pixels: vec![Vec3::splat(2.0); 16] };
-        let a = Image { width: 4, height: 4, pixels: vec![Vec3::new(2.5, 2.5, 2.5); 16] };
+        let b = Image {
+            width: 4,
+            height: 4,
+            pixels: vec![Vec3::splat(2.0); 16],
+        };
+        let a = Image {
+            width: 4,
+            height: 4,
+            pixels: vec![Vec3::new(2.5, 2.5, 2.5); 16],
+        };
         let m = metrics(&a, &b, None);
         // 1e-12: exact f64 arithmetic on small binary fractions.
         assert!((m.rmse - 0.5).abs() < 1e-12);

@@ -16,7 +16,11 @@ pub struct Image {
 impl Image {
     /// A black image.
     pub fn new(width: usize, height: usize) -> Self {
-        Image { width, height, pixels: vec![Vec3::ZERO; width * height] }
+        Image {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width * height],
+        }
     }
 
     /// Pixel at column `x`, row `y`.

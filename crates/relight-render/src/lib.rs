@@ -3,6 +3,12 @@
 //! The CPU rasteriser with per-method shading, the reference path tracer, tone mapping and
 //! image comparison. Conventions are those of `relight_sphere` (Mitsuba 3's, +Y up).
 
+pub mod compare;
 pub mod image;
+pub mod mitsuba;
+pub mod pathtrace;
+pub mod raster;
+pub mod shade_sh;
+pub mod tonemap;
 
 pub use image::Image;

@@ -68,7 +68,11 @@ impl ToneMap {
     #[inline]
     pub fn pixel_srgb8(&self, c: Vec3) -> [u8; 3] {
         let m = self.map_rgb(c);
-        [to_u8(srgb_oetf(m.x)), to_u8(srgb_oetf(m.y)), to_u8(srgb_oetf(m.z))]
+        [
+            to_u8(srgb_oetf(m.x)),
+            to_u8(srgb_oetf(m.y)),
+            to_u8(srgb_oetf(m.z)),
+        ]
     }
 
     /// Tone map and sRGB-encode a whole image (row-major, row 0 at the top, as [`Image`]).
@@ -160,7 +164,10 @@ mod tests {
         }
         // Display-linear 0.5 is sRGB code 188 (0.7354 * 255 = 187.5 -> 188).
         assert_eq!(to_u8(srgb_oetf(0.5)), 188);
-        assert_eq!(ToneMap::default().pixel_srgb8(Vec3::new(0.0, 1.0, 5.0)), [0, 255, 255]);
+        assert_eq!(
+            ToneMap::default().pixel_srgb8(Vec3::new(0.0, 1.0, 5.0)),
+            [0, 255, 255]
+        );
         // Monotone over the 8-bit encoding too.
         let mut prev = 0u8;
         for i in 0..=1000 {

@@ -64,7 +64,10 @@ impl Camera {
             return Err("camera up vector is parallel to the view direction".into());
         }
         if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
-            return Err(format!("camera fov {} is not in (0, 180) degrees", self.fov_deg));
+            return Err(format!(
+                "camera fov {} is not in (0, 180) degrees",
+                self.fov_deg
+            ));
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
             return Err(format!(
@@ -142,7 +145,11 @@ mod tests {
 
     #[test]
     fn centre_ray_is_forward_and_right_is_plus_x_for_camera_on_plus_z() {
-        let c = Camera { origin: [0.0, 0.0, 5.0], target: [0.0; 3], ..cam() };
+        let c = Camera {
+            origin: [0.0, 0.0, 5.0],
+            target: [0.0; 3],
+            ..cam()
+        };
         let f = c.frame();
         assert!((f.dir_at(32.0, 24.0) - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-6);
         // Looking down -Z with +Y up, the right of the image is +X (Mitsuba's look_at).
@@ -158,7 +165,10 @@ mod tests {
         for &(x, y) in &[(0.5f32, 0.5f32), (10.25, 40.75), (63.5, 12.0)] {
             let p = f.origin + f.dir_at(x, y) * 3.7;
             let (px, py, _) = f.project(p).unwrap();
-            assert!((px - x).abs() < 1e-3 && (py - y).abs() < 1e-3, "{px},{py} vs {x},{y}");
+            assert!(
+                (px - x).abs() < 1e-3 && (py - y).abs() < 1e-3,
+                "{px},{py} vs {x},{y}"
+            );
         }
     }
 
@@ -174,11 +184,26 @@ mod tests {
     #[test]
     fn validate_rejects_bad_cameras() {
         assert!(cam().validate().is_ok());
-        assert!(Camera { target: [0.3, 1.0, 4.0], ..cam() }.validate().is_err());
-        assert!(Camera { up: [0.0, 0.0, 1.0], origin: [0.0, 0.0, 4.0], target: [0.0; 3], ..cam() }
-            .validate()
-            .is_err());
-        assert!(Camera { fov_deg: 0.0, ..cam() }.validate().is_err());
+        assert!(Camera {
+            target: [0.3, 1.0, 4.0],
+            ..cam()
+        }
+        .validate()
+        .is_err());
+        assert!(Camera {
+            up: [0.0, 0.0, 1.0],
+            origin: [0.0, 0.0, 4.0],
+            target: [0.0; 3],
+            ..cam()
+        }
+        .validate()
+        .is_err());
+        assert!(Camera {
+            fov_deg: 0.0,
+            ..cam()
+        }
+        .validate()
+        .is_err());
         assert!(Camera { width: 0, ..cam() }.validate().is_err());
     }
 }

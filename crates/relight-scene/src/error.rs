@@ -18,12 +18,18 @@ pub struct Location {
 impl Location {
     /// A location naming only the file.
     pub fn file(path: &Path) -> Self {
-        Location { file: path.display().to_string(), line: None }
+        Location {
+            file: path.display().to_string(),
+            line: None,
+        }
     }
 
     /// A location naming the file and a 1-based line.
     pub fn line(path: &Path, line: usize) -> Self {
-        Location { file: path.display().to_string(), line: Some(line) }
+        Location {
+            file: path.display().to_string(),
+            line: Some(line),
+        }
     }
 }
 
@@ -85,6 +91,12 @@ pub enum SceneError {
         /// The offending values, formatted.
         value: String,
     },
+    /// A parameter outside its valid range (e.g. a sky turbidity of 20).
+    #[error("invalid parameter: {msg}")]
+    InvalidParameter {
+        /// Which parameter and its valid range.
+        msg: String,
+    },
     /// A mesh that is empty or breaks a `TriMesh` invariant.
     #[error("{file}: {msg}")]
     InvalidMesh {
@@ -98,31 +110,49 @@ pub enum SceneError {
 impl SceneError {
     /// An IO error on `path`.
     pub fn io(path: &Path, source: std::io::Error) -> Self {
-        SceneError::Io { file: path.display().to_string(), source }
+        SceneError::Io {
+            file: path.display().to_string(),
+            source,
+        }
     }
 
     /// A format error in `path` (no line).
     pub fn malformed(path: &Path, msg: impl Into<String>) -> Self {
-        SceneError::Malformed { at: Location::file(path), msg: msg.into() }
+        SceneError::Malformed {
+            at: Location::file(path),
+            msg: msg.into(),
+        }
     }
 
     /// A format error at `line` (1-based) of `path`.
     pub fn malformed_at(path: &Path, line: usize, msg: impl Into<String>) -> Self {
-        SceneError::Malformed { at: Location::line(path, line), msg: msg.into() }
+        SceneError::Malformed {
+            at: Location::line(path, line),
+            msg: msg.into(),
+        }
     }
 
     /// An absurd size in `path`.
     pub fn too_large(path: &Path, msg: impl Into<String>) -> Self {
-        SceneError::TooLarge { at: Location::file(path), msg: msg.into() }
+        SceneError::TooLarge {
+            at: Location::file(path),
+            msg: msg.into(),
+        }
     }
 
     /// An unsupported feature of `path`.
     pub fn unsupported(path: &Path, msg: impl Into<String>) -> Self {
-        SceneError::Unsupported { at: Location::file(path), msg: msg.into() }
+        SceneError::Unsupported {
+            at: Location::file(path),
+            msg: msg.into(),
+        }
     }
 
     /// An invalid mesh from `path`.
     pub fn invalid_mesh(path: &Path, msg: impl Into<String>) -> Self {
-        SceneError::InvalidMesh { file: path.display().to_string(), msg: msg.into() }
+        SceneError::InvalidMesh {
+            file: path.display().to_string(),
+            msg: msg.into(),
+        }
     }
 }

@@ -9,7 +9,12 @@ pub mod camera;
 pub mod material;
 pub mod mesh;
 pub mod scene;
+pub mod scene_file;
 pub mod shapes;
 pub mod testdata;
 
 pub use relight_sphere::{Mat3, Vec2, Vec3};
+pub mod error;
+pub mod io;
+pub mod meshops;
+pub mod sky;

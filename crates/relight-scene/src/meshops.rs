@@ -37,7 +37,11 @@ pub fn smooth_normals(mesh: &TriMesh, weighting: NormalWeighting) -> Vec<Vec3> {
     acc.into_iter()
         .map(|n| {
             let u = n.normalize_or_zero();
-            if u == Vec3::ZERO { Vec3::Y } else { u }
+            if u == Vec3::ZERO {
+                Vec3::Y
+            } else {
+                u
+            }
         })
         .collect()
 }
@@ -49,8 +53,11 @@ pub fn smooth_normals(mesh: &TriMesh, weighting: NormalWeighting) -> Vec<Vec3> {
 /// become degenerate: see [`drop_degenerate`]). Returns the welded mesh.
 pub fn weld(mesh: &TriMesh, eps: f32) -> TriMesh {
     let eps = eps.max(f32::MIN_POSITIVE);
-    let cell = |p: Vec3| ((p / eps).floor()).as_ivec3();
-    let mut grid: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
+    let cell = |p: Vec3| {
+        let c = (p / eps).floor();
+        (c.x as i64, c.y as i64, c.z as i64)
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
     let mut remap = vec![0u32; mesh.positions.len()];
     let mut kept: Vec<usize> = Vec::new();
     for (i, &p) in mesh.positions.iter().enumerate() {
@@ -59,8 +66,11 @@ pub fn weld(mesh: &TriMesh, eps: f32) -> TriMesh {
         'search: for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(list) = grid.get(&(c + glam::IVec3::new(dx, dy, dz))) {
-                        if let Some(&k) = list.iter().find(|&&k| mesh.positions[kept[k as usize]].distance(p) <= eps) {
+                    if let Some(list) = grid.get(&(c.0 + dx, c.1 + dy, c.2 + dz)) {
+                        if let Some(&k) = list
+                            .iter()
+                            .find(|&&k| mesh.positions[kept[k as usize]].distance(p) <= eps)
+                        {
                             found = Some(k);
                             break 'search;
                         }
@@ -85,8 +95,15 @@ pub fn weld(mesh: &TriMesh, eps: f32) -> TriMesh {
         } else {
             Vec::new()
         },
-        uvs: mesh.uvs.as_ref().map(|uv| kept.iter().map(|&i| uv[i]).collect()),
-        indices: mesh.indices.iter().map(|t| t.map(|i| remap[i as usize])).collect(),
+        uvs: mesh
+            .uvs
+            .as_ref()
+            .map(|uv| kept.iter().map(|&i| uv[i]).collect()),
+        indices: mesh
+            .indices
+            .iter()
+            .map(|t| t.map(|i| remap[i as usize]))
+            .collect(),
         material_ids: mesh.material_ids.clone(),
     }
 }
@@ -103,7 +120,11 @@ pub fn is_degenerate(mesh: &TriMesh, tri: [u32; 3]) -> bool {
 /// Remove degenerate triangles (with their material ids); returns how many were removed.
 pub fn drop_degenerate(mesh: &mut TriMesh) -> usize {
     let before = mesh.indices.len();
-    let keep: Vec<bool> = mesh.indices.iter().map(|&t| !is_degenerate(mesh, t)).collect();
+    let keep: Vec<bool> = mesh
+        .indices
+        .iter()
+        .map(|&t| !is_degenerate(mesh, t))
+        .collect();
     let mut k = keep.iter();
     mesh.indices.retain(|_| *k.next().unwrap_or(&true));
     if mesh.material_ids.len() == keep.len() {
@@ -174,16 +195,32 @@ pub fn validate(mesh: &TriMesh) -> Result<(), String> {
         }
     }
     if mesh.material_ids.len() != mesh.indices.len() {
-        return Err(format!("{} material ids for {} triangles", mesh.material_ids.len(), mesh.indices.len()));
+        return Err(format!(
+            "{} material ids for {} triangles",
+            mesh.material_ids.len(),
+            mesh.indices.len()
+        ));
     }
-    if let Some((t, tri)) = mesh.indices.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= n)) {
+    if let Some((t, tri)) = mesh
+        .indices
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&i| i as usize >= n))
+    {
         return Err(format!("triangle {t} {tri:?} indexes beyond {n} vertices"));
     }
     if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
         return Err(format!("position of vertex {i} is not finite"));
     }
-    if let Some(i) = mesh.normals.iter().position(|v| !((v.length() - 1.0).abs() <= 1e-3)) {
-        return Err(format!("normal of vertex {i} is not unit: {}", mesh.normals[i]));
+    if let Some(i) = mesh
+        .normals
+        .iter()
+        .position(|v| v.is_nan() || (v.length() - 1.0).abs() > 1e-3)
+    {
+        return Err(format!(
+            "normal of vertex {i} is not unit: {}",
+            mesh.normals[i]
+        ));
     }
     Ok(())
 }
@@ -197,8 +234,15 @@ mod tests {
         let mut m = TriMesh::default();
         for axis in 0..3 {
             for sign in [-1.0f32, 1.0] {
-                let n = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
-                let u = Vec3::from_array(std::array::from_fn(|k| if k == (axis + 1) % 3 { 1.0 } else { 0.0 }));
+                let n =
+                    Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
+                let u = Vec3::from_array(std::array::from_fn(|k| {
+                    if k == (axis + 1) % 3 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                }));
                 let v = n.cross(u);
                 let base = m.positions.len() as u32;
                 for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
@@ -247,7 +291,8 @@ mod tests {
                 // Non-uniform radius scaling would break radial normals; keep the unit sphere
                 // but jitter the azimuth so triangles differ in size.
                 let p = p + 0.1 * (i as f32).sin();
-                m.positions.push(Vec3::new(t.sin() * p.cos(), t.cos(), -t.sin() * p.sin()));
+                m.positions
+                    .push(Vec3::new(t.sin() * p.cos(), t.cos(), -t.sin() * p.sin()));
             }
         }
         m.positions.push(-Vec3::Y);
@@ -256,10 +301,13 @@ mod tests {
         for j in 0..n_phi {
             m.indices.push([0, ring(1, j), ring(1, j + 1)]);
             for i in 1..n_theta - 1 {
-                m.indices.push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
-                m.indices.push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
+                m.indices
+                    .push([ring(i, j), ring(i + 1, j), ring(i + 1, j + 1)]);
+                m.indices
+                    .push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
             }
-            m.indices.push([ring(n_theta - 1, j), last, ring(n_theta - 1, j + 1)]);
+            m.indices
+                .push([ring(n_theta - 1, j), last, ring(n_theta - 1, j + 1)]);
         }
         m.material_ids = vec![0; m.indices.len()];
         m

@@ -100,7 +100,11 @@ pub fn reflect(v: Vec3, m: Vec3) -> Vec3 {
 /// total internal reflection gives 1).
 #[inline]
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let (eta, cos_i) = if cos_i < 0.0 { (1.0 / eta, -cos_i) } else { (eta, cos_i) };
+    let (eta, cos_i) = if cos_i < 0.0 {
+        (1.0 / eta, -cos_i)
+    } else {
+        (eta, cos_i)
+    };
     let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
     if sin2_t >= 1.0 {
         return 1.0;
@@ -138,7 +142,10 @@ pub fn rough_dielectric_reflectance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
     let mut sum = 0.0f64;
     for i in 0..QUAD_N {
         for j in 0..QUAD_N {
-            let u = Vec2::new((i as f32 + 0.5) / QUAD_N as f32, (j as f32 + 0.5) / QUAD_N as f32);
+            let u = Vec2::new(
+                (i as f32 + 0.5) / QUAD_N as f32,
+                (j as f32 + 0.5) / QUAD_N as f32,
+            );
             let m = sample_visible_normal(wi, alpha, u);
             let wo = reflect(wi, m);
             sum += (fresnel_dielectric(wi.dot(m), eta) * smith_g1(wo, m, alpha)) as f64;
@@ -156,7 +163,10 @@ pub fn rough_dielectric_transmittance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
     let mut sum = 0.0f64;
     for i in 0..QUAD_N {
         for j in 0..QUAD_N {
-            let u = Vec2::new((i as f32 + 0.5) / QUAD_N as f32, (j as f32 + 0.5) / QUAD_N as f32);
+            let u = Vec2::new(
+                (i as f32 + 0.5) / QUAD_N as f32,
+                (j as f32 + 0.5) / QUAD_N as f32,
+            );
             let m = sample_visible_normal(wi, alpha, u);
             if let Some(wt) = refract(wi, m, eta) {
                 let f = fresnel_dielectric(wi.dot(m), eta);
@@ -177,7 +187,8 @@ pub struct PlasticTables {
     /// `t(cos)`: energy transmitted into the coating from outside at `cos = i / (RES - 1)`.
     pub external_transmittance: [f32; TABLE_RES],
     /// Cosine-weighted hemispherical reflectance of the interface seen from inside,
-    /// `Fdr = 2 ∫_0^1 R_int(mu) mu dmu` (relative index `1 / eta`).
+    /// `Fdr = 2 ∫_0^1 R_int(mu) mu dmu` (relative index `1 / eta`), by Mitsuba 3's rule (the
+    /// mean over the table nodes; see [`PlasticTables::compute`]).
     pub internal_reflectance: f32,
     /// Cosine-weighted average of `t`, `2 ∫_0^1 t(mu) mu dmu`.
     pub mean_transmittance: f32,
@@ -191,17 +202,25 @@ impl PlasticTables {
             let mu = i as f32 / (TABLE_RES - 1) as f32;
             *ti = rough_dielectric_transmittance(mu, eta, alpha);
         }
-        // Cosine-weighted integrals by the midpoint rule over mu.
-        const NMU: usize = 64;
-        let (mut fdr, mut tbar) = (0.0f64, 0.0f64);
+        // Fdr exactly as Mitsuba 3 forms it: twice the mean of `R_int(mu) mu` over the table's
+        // nodes `mu = i / (RES - 1)` (both ends included). This node average is 1.4% below the
+        // midpoint-rule integral (0.4091 vs 0.4149 at alpha 0.3, eta 1.49) and moves the
+        // diffuse lobe by 1%, so we follow Mitsuba rather than the exact integral.
+        let mut fdr = 0.0f64;
+        for i in 0..TABLE_RES {
+            let mu = i as f32 / (TABLE_RES - 1) as f32;
+            fdr += (rough_dielectric_reflectance(mu, 1.0 / eta, alpha) * mu) as f64;
+        }
+        // Cosine-weighted mean of t by the midpoint rule.
+        const NMU: usize = 256;
+        let mut tbar = 0.0f64;
         for k in 0..NMU {
             let mu = (k as f32 + 0.5) / NMU as f32;
-            fdr += (rough_dielectric_reflectance(mu, 1.0 / eta, alpha) * mu) as f64;
             tbar += (lerp_table(&t, mu) * mu) as f64;
         }
         PlasticTables {
             external_transmittance: t,
-            internal_reflectance: (2.0 * fdr / NMU as f64) as f32,
+            internal_reflectance: (2.0 * fdr / TABLE_RES as f64) as f32,
             mean_transmittance: (2.0 * tbar / NMU as f64) as f32,
         }
     }
@@ -282,12 +301,17 @@ mod tests {
             let r = rough_dielectric_reflectance(c, eta, 1e-3);
             let t = rough_dielectric_transmittance(c, eta, 1e-3);
             let f = fresnel_dielectric(c, eta);
-            assert!((r - f).abs() < 2e-3 && (t - (1.0 - f)).abs() < 2e-3, "{c}: {r} {t} {f}");
+            assert!(
+                (r - f).abs() < 2e-3 && (t - (1.0 - f)).abs() < 2e-3,
+                "{c}: {r} {t} {f}"
+            );
         }
-        // Rough: shadowing loses energy, never creates it.
-        for &c in &[0.05f32, 0.5, 1.0] {
-            let s = rough_dielectric_reflectance(c, eta, 0.5) + rough_dielectric_transmittance(c, eta, 0.5);
-            assert!(s <= 1.0 + 1e-4 && s > 0.8, "{c}: {s}");
+        // Rough: shadowing loses energy, never creates it (a third of it at grazing incidence
+        // and alpha 0.5, a few percent at normal incidence).
+        for &(c, lo) in &[(0.05f32, 0.5), (0.5, 0.85), (1.0, 0.9)] {
+            let s = rough_dielectric_reflectance(c, eta, 0.5)
+                + rough_dielectric_transmittance(c, eta, 0.5);
+            assert!(s <= 1.0 + 1e-4 && s > lo, "{c}: {s}");
         }
     }
 

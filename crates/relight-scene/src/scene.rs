@@ -24,7 +24,11 @@ pub struct Environment {
 impl Environment {
     /// An unrotated environment of scale 1.
     pub fn new(map: EnvMap) -> Self {
-        Environment { map, scale: 1.0, rotate_y_deg: 0.0 }
+        Environment {
+            map,
+            scale: 1.0,
+            rotate_y_deg: 0.0,
+        }
     }
 
     /// Rotation taking world directions to the map's own frame.

@@ -111,11 +111,16 @@ pub enum EnvDesc {
         #[serde(default)]
         rotate_y_deg: Option<f32>,
     },
-    /// The procedural sun and sky.
+    /// The procedural sun and sky (Preetham et al. 1999; see [`crate::sky`]).
     Sky {
-        /// Sky parameters.
-        #[serde(flatten)]
-        params: sky::SkyParams,
+        /// Sun elevation above the horizon, degrees.
+        sun_elevation_deg: f32,
+        /// Sun azimuth, degrees, as Mitsuba's latlong phi (0 = -Z, 90 = +X).
+        sun_azimuth_deg: f32,
+        /// Atmospheric turbidity in [2, 10].
+        turbidity: f32,
+        /// Ground albedo (RGB).
+        ground_albedo: [f32; 3],
         /// Rotation about +Y in degrees (default 0).
         #[serde(default)]
         rotate_y_deg: Option<f32>,
@@ -181,7 +186,7 @@ impl SceneDesc {
             .validate()
             .map_err(|m| SceneError::malformed(origin, m))?;
         if self.shapes.is_empty() {
-            return Err(SceneError::malformed(origin, "the scene has no shapes".into()));
+            return Err(SceneError::malformed(origin, "the scene has no shapes"));
         }
         let mut mesh = TriMesh::default();
         let mut materials: Vec<Material> = Vec::new();
@@ -195,23 +200,35 @@ impl SceneDesc {
             materials.extend(mats);
         }
         let env = build_env(&self.environment)?;
-        Ok(Scene { mesh, materials, env, camera: self.camera })
+        Ok(Scene {
+            mesh,
+            materials,
+            env,
+            camera: self.camera,
+        })
     }
 }
 
 fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
     let one = |m: &Option<Material>| vec![m.unwrap_or_default()];
     Ok(match s {
-        ShapeDesc::Mesh { file, fit, material } => {
+        ShapeDesc::Mesh {
+            file,
+            fit,
+            material,
+        } => {
             let loaded = io::load_mesh(file)?;
             let mut mesh = loaded.mesh;
             if let Some(f) = fit {
                 let (lo, hi) = mesh
                     .bounds()
-                    .ok_or_else(|| SceneError::malformed(file, "empty mesh".into()))?;
+                    .ok_or_else(|| SceneError::malformed(file, "empty mesh"))?;
                 let h = hi.y - lo.y;
                 if !(h > 0.0) {
-                    return Err(SceneError::malformed(file, "mesh is flat in Y: cannot fit by height".into()));
+                    return Err(SceneError::malformed(
+                        file,
+                        "mesh is flat in Y: cannot fit by height",
+                    ));
                 }
                 let scale = f.height / h;
                 let bottom = Vec3::new((lo.x + hi.x) * 0.5, lo.y, (lo.z + hi.z) * 0.5);
@@ -230,42 +247,96 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             };
             (mesh, mats)
         }
-        ShapeDesc::Sphere { center, radius, rings, material } => {
+        ShapeDesc::Sphere {
+            center,
+            radius,
+            rings,
+            material,
+        } => {
             let r = rings.unwrap_or(48).clamp(2, 4096);
-            (shapes::uv_sphere(Vec3::from(*center), *radius, r, 2 * r), one(material))
+            (
+                shapes::uv_sphere(Vec3::from(*center), *radius, r, 2 * r),
+                one(material),
+            )
         }
-        ShapeDesc::Plane { center, size, divisions, material } => (
-            shapes::ground_plane(Vec3::from(*center), *size, divisions.unwrap_or(32).clamp(1, 4096)),
+        ShapeDesc::Plane {
+            center,
+            size,
+            divisions,
+            material,
+        } => (
+            shapes::ground_plane(
+                Vec3::from(*center),
+                *size,
+                divisions.unwrap_or(32).clamp(1, 4096),
+            ),
             one(material),
         ),
-        ShapeDesc::Box { min, max, material } => {
-            (shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), 4), one(material))
-        }
+        ShapeDesc::Box { min, max, material } => (
+            shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), 4),
+            one(material),
+        ),
     })
     .and_then(|(m, mats)| {
-        let m = meshops::validate_shape(m)?;
+        meshops::validate(&m).map_err(|e| SceneError::invalid_mesh(shape_origin(s), e))?;
         Ok((m, mats))
     })
+}
+
+fn shape_origin(s: &ShapeDesc) -> &Path {
+    match s {
+        ShapeDesc::Mesh { file, .. } => file,
+        ShapeDesc::Sphere { .. } => Path::new("<sphere>"),
+        ShapeDesc::Plane { .. } => Path::new("<plane>"),
+        ShapeDesc::Box { .. } => Path::new("<box>"),
+    }
 }
 
 /// Build the environment of a description (loading files, rasterising the sky).
 pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
     Ok(match d {
-        EnvDesc::File { path, layout, scale, rotate_y_deg } => {
+        EnvDesc::File {
+            path,
+            layout,
+            scale,
+            rotate_y_deg,
+        } => {
             let layout = match layout {
                 Some(l) => Some(parse_layout(l).ok_or_else(|| {
-                    SceneError::malformed(path, format!("unknown layout '{l}' (latlong, cube, probe)"))
+                    SceneError::malformed(
+                        path,
+                        format!("unknown layout '{l}' (latlong, cube, probe)"),
+                    )
                 })?),
                 None => None,
             };
             let map = io::load_env(path, layout)?;
-            Environment { map, scale: scale.unwrap_or(1.0), rotate_y_deg: rotate_y_deg.unwrap_or(0.0) }
+            Environment {
+                map,
+                scale: scale.unwrap_or(1.0),
+                rotate_y_deg: rotate_y_deg.unwrap_or(0.0),
+            }
         }
-        EnvDesc::Sky { params, rotate_y_deg } => Environment {
-            map: sky::sky_env(params, 1024, 512),
-            scale: 1.0,
-            rotate_y_deg: rotate_y_deg.unwrap_or(0.0),
-        },
+        EnvDesc::Sky {
+            sun_elevation_deg,
+            sun_azimuth_deg,
+            turbidity,
+            ground_albedo,
+            rotate_y_deg,
+        } => {
+            let params = sky::SkyParams {
+                sun_elevation_deg: *sun_elevation_deg,
+                sun_azimuth_deg: *sun_azimuth_deg,
+                turbidity: *turbidity,
+                ground_albedo: Vec3::from(*ground_albedo),
+                ..sky::SkyParams::default()
+            };
+            Environment {
+                map: sky::sun_sky_envmap(params)?,
+                scale: 1.0,
+                rotate_y_deg: rotate_y_deg.unwrap_or(0.0),
+            }
+        }
         EnvDesc::Constant { radiance } => Environment::new(EnvMap::constant(Vec3::from(*radiance))),
     })
 }

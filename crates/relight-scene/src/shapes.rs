@@ -18,10 +18,17 @@ pub fn uv_sphere(center: Vec3, radius: f32, rings: u32, segments: u32) -> TriMes
         for j in 0..=segments {
             let phi = std::f32::consts::TAU * j as f32 / segments as f32;
             // Mitsuba's latlong parametrisation: d = (sin phi sin theta, cos theta, -cos phi sin theta).
-            let n = Vec3::new(phi.sin() * theta.sin(), theta.cos(), -phi.cos() * theta.sin());
+            let n = Vec3::new(
+                phi.sin() * theta.sin(),
+                theta.cos(),
+                -phi.cos() * theta.sin(),
+            );
             m.positions.push(center + n * radius);
             m.normals.push(n);
-            uvs.push(Vec2::new(j as f32 / segments as f32, i as f32 / rings as f32));
+            uvs.push(Vec2::new(
+                j as f32 / segments as f32,
+                i as f32 / rings as f32,
+            ));
         }
     }
     let row = segments + 1;
@@ -175,7 +182,10 @@ mod tests {
         let v = signed_volume(&m);
         let exact = 4.0 / 3.0 * std::f32::consts::PI * 8.0;
         // A tessellated sphere is inscribed: slightly smaller, within 1% at this resolution.
-        assert!(v > 0.0 && (v - exact).abs() / exact < 0.01, "{v} vs {exact}");
+        assert!(
+            v > 0.0 && (v - exact).abs() / exact < 0.01,
+            "{v} vs {exact}"
+        );
         for t in 0..m.triangle_count() {
             let g = m.geometric_normal(t);
             let [a, b, c] = m.triangle(t);

@@ -24,7 +24,9 @@ pub fn shared_file(rel: &str) -> Option<PathBuf> {
             None
         }
         None => {
-            eprintln!("SKIP: shared data folder (../shared or $RELIGHT_SHARED) not present; needs {rel}");
+            eprintln!(
+                "SKIP: shared data folder (../shared or $RELIGHT_SHARED) not present; needs {rel}"
+            );
             None
         }
     }

@@ -19,11 +19,17 @@ pub struct ChiTest {
 
 impl Default for ChiTest {
     fn default() -> Self {
-        ChiTest { z_bins: 16, phi_bins: 32, samples: 200_000, sub: 8 }
+        ChiTest {
+            z_bins: 16,
+            phi_bins: 32,
+            samples: 200_000,
+            sub: 8,
+        }
     }
 }
 
-/// Outcome of [`chi2_sphere_test`].
+/// Outcome of [`chi2_sphere_test`] (all fields are shown by `Debug` in failure messages).
+#[allow(dead_code)]
 #[derive(Clone, Debug)]
 pub struct ChiResult {
     /// The chi-square statistic.
@@ -109,5 +115,11 @@ pub fn chi2_sphere_test(
     let kf = dof as f64;
     let z_score = ((chi2 / kf).cbrt() - (1.0 - 2.0 / (9.0 * kf))) / (2.0 / (9.0 * kf)).sqrt();
     let passed = !impossible && z_score < 4.5 && (pdf_integral - 1.0).abs() < 1e-3;
-    ChiResult { chi2, dof, z_score, pdf_integral, passed }
+    ChiResult {
+        chi2,
+        dof,
+        z_score,
+        pdf_integral,
+        passed,
+    }
 }

@@ -48,8 +48,14 @@ pub enum CubeFace {
 
 impl CubeFace {
     /// The faces in storage order.
-    pub const ALL: [CubeFace; 6] =
-        [CubeFace::PosX, CubeFace::NegX, CubeFace::PosY, CubeFace::NegY, CubeFace::PosZ, CubeFace::NegZ];
+    pub const ALL: [CubeFace; 6] = [
+        CubeFace::PosX,
+        CubeFace::NegX,
+        CubeFace::PosY,
+        CubeFace::NegY,
+        CubeFace::PosZ,
+        CubeFace::NegZ,
+    ];
 
     /// Storage index 0..5.
     #[inline]
@@ -103,13 +109,17 @@ pub fn dir_to_face_st(dir: Vec3) -> (CubeFace, Vec2) {
         (CubeFace::NegZ, -dir.x, -dir.y, a.z)
     };
     let inv = if ma > 0.0 { 1.0 / ma } else { 0.0 };
-    (face, Vec2::new(0.5 * (sc * inv + 1.0), 0.5 * (tc * inv + 1.0)))
+    (
+        face,
+        Vec2::new(0.5 * (sc * inv + 1.0), 0.5 * (tc * inv + 1.0)),
+    )
 }
 
 /// Unit direction of `(s, t)` in `[0, 1]^2` on `face`.
 #[inline]
 pub fn face_st_to_dir(face: CubeFace, st: Vec2) -> Vec3 {
-    face.plane_point(2.0 * st.x - 1.0, 2.0 * st.y - 1.0).normalize()
+    face.plane_point(2.0 * st.x - 1.0, 2.0 * st.y - 1.0)
+        .normalize()
 }
 
 /// Flat index of texel `(face, row, col)` of an `n x n`-per-face cube map.
@@ -215,7 +225,12 @@ mod tests {
             assert!((st - Vec2::splat(0.5)).length() < 1e-6);
         }
         // Row 0 of the side faces looks up (+Y); +Y row 0 looks to -Z; -Y row 0 looks to +Z.
-        for f in [CubeFace::PosX, CubeFace::NegX, CubeFace::PosZ, CubeFace::NegZ] {
+        for f in [
+            CubeFace::PosX,
+            CubeFace::NegX,
+            CubeFace::PosZ,
+            CubeFace::NegZ,
+        ] {
             assert!(face_st_to_dir(f, Vec2::new(0.5, 0.0)).y > 0.5);
         }
         assert!(face_st_to_dir(CubeFace::PosY, Vec2::new(0.5, 0.0)).z < -0.5);

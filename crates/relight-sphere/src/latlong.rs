@@ -57,7 +57,11 @@ pub fn texel_dir(width: usize, height: usize, col: usize, row: usize) -> Vec3 {
     let (sp, cp) = phi.sin_cos();
     let (st, ct) = theta.sin_cos();
     // Exact poles: sin(pi) is not 0 in floating point.
-    let st = if row == 0 || row + 1 == height { 0.0 } else { st };
+    let st = if row == 0 || row + 1 == height {
+        0.0
+    } else {
+        st
+    };
     let ct = if row == 0 {
         1.0
     } else if row + 1 == height {
@@ -76,7 +80,11 @@ pub fn row_weight(width: usize, height: usize, row: usize) -> f64 {
     let dphi = 2.0 * PI64 / width as f64;
     if row == 0 || row + 1 == height {
         // Half tent at a pole: 1 - sin(h)/h, written stably for small h.
-        let sinc = if h < 1e-3 { 1.0 - h * h / 6.0 + h.powi(4) / 120.0 } else { h.sin() / h };
+        let sinc = if h < 1e-3 {
+            1.0 - h * h / 6.0 + h.powi(4) / 120.0
+        } else {
+            h.sin() / h
+        };
         dphi * (1.0 - sinc)
     } else {
         let one_minus_cos = 2.0 * (0.5 * h).sin().powi(2);
@@ -121,7 +129,12 @@ mod tests {
         assert!((texel_dir(w, h, 3, 0) - Vec3::Y).length() < 1e-7);
         assert!((texel_dir(w, h, 3, h - 1) + Vec3::Y).length() < 1e-7);
         // u = 0.25 is +X, 0.5 is +Z, 0.75 is -X, 0 is -Z.
-        for (u, d) in [(0.25, Vec3::X), (0.5, Vec3::Z), (0.75, -Vec3::X), (0.0, -Vec3::Z)] {
+        for (u, d) in [
+            (0.25, Vec3::X),
+            (0.5, Vec3::Z),
+            (0.75, -Vec3::X),
+            (0.0, -Vec3::Z),
+        ] {
             assert!((uv_to_dir(Vec2::new(u, 0.5)) - d).length() < 1e-6, "u={u}");
             let back = dir_to_uv(d);
             assert!((back.x - u).abs() < 1e-6 && (back.y - 0.5).abs() < 1e-6);
@@ -164,7 +177,10 @@ mod tests {
         for j in 0..h {
             for i in 0..w {
                 let b = bilinear(w, h, texel_dir(w, h, i, j));
-                let best = b.iter().copied().fold((0, -1.0), |a, x| if x.1 > a.1 { x } else { a });
+                let best = b
+                    .iter()
+                    .copied()
+                    .fold((0, -1.0), |a, x| if x.1 > a.1 { x } else { a });
                 let s: f32 = b.iter().map(|x| x.1).sum();
                 assert!((s - 1.0).abs() < 1e-6);
                 if j != 0 && j != h - 1 {

@@ -24,5 +24,54 @@
 //! * **Cube maps**: faces in the order +X, -X, +Y, -Y, +Z, -Z with the OpenGL face orientation
 //!   (see [`cubemap`]).
 
+//!
+//! ## Modules
+//! * [`envmap`]: environment maps (latlong, cube, probe), bilinear lookup, exact quadrature
+//!   weights, [`EnvSampler`] importance sampling ([`env_sampler`]);
+//!   grids: [`latlong`], [`cubemap`], [`probe`], [`icosphere`];
+//! * [`sh`]: real SH evaluation, projection, zonal convolution, windows; [`sh_rotate`]:
+//!   rotation of any order; [`sh_product`]: triple-product tensor; [`basis`]: the [`basis::SphericalBasis`] trait;
+//! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
+//!
+//! ## Example
+//! ```
+//! use relight_sphere::{sh, sh_rotate::ShRotation, EnvMap, Mat3, Vec3};
+//! // A sky brighter towards +Y, as a 64 x 33 latlong map.
+//! let map = EnvMap::latlong_from_fn(64, 33, |d| Vec3::splat(1.0 + d.y.max(0.0)));
+//! // Order-3 SH projection (9 RGB coefficients) and the irradiance seen by an upward normal.
+//! let radiance = sh::project_env(&map, 3);
+//! let irradiance = sh::irradiance_from_radiance(&radiance);
+//! let e_up = sh::eval_rgb(&irradiance, Vec3::Y);
+//! // Exact: int (1 + max(0, y)) max(0, y) dw = pi + 2 pi / 3.
+//! let exact = std::f32::consts::PI * (1.0 + 2.0 / 3.0);
+//! assert!((e_up.x - exact).abs() < 0.02 * exact);
+//! // Rotating the lighting by R turns it into the coefficients of L(R^T d).
+//! let rot = ShRotation::new(3, Mat3::from_rotation_x(std::f32::consts::PI));
+//! let flipped = rot.apply(&radiance);
+//! assert!((sh::eval_rgb(&flipped, -Vec3::Y) - sh::eval_rgb(&radiance, Vec3::Y)).length() < 1e-4);
+//! ```
+
+#![warn(missing_docs)]
+
 pub use glam::{Mat3, Quat, Vec2, Vec3};
+
+pub mod basis;
+pub mod cubemap;
+pub mod env_sampler;
 pub mod envmap;
+pub mod icosphere;
+pub mod latlong;
+pub mod probe;
+pub mod quadrature;
+pub mod sh;
+pub mod sh_product;
+pub mod sh_rotate;
+pub mod warp;
+
+#[cfg(test)]
+mod chi2;
+
+pub use basis::{ShBasis, SphericalBasis};
+pub use envmap::{luminance, EnvLayout, EnvMap, EnvSampler, TexelInfo};
+pub use sh_rotate::ShRotation;
+pub use warp::Rng;

@@ -39,7 +39,10 @@ pub fn uniform_sphere_to_square(dir: Vec3) -> Vec2 {
     if ux < 0.0 {
         ux += 1.0;
     }
-    Vec2::new(ux.min(1.0 - f32::EPSILON), (0.5 - 0.5 * dir.y).clamp(0.0, 1.0))
+    Vec2::new(
+        ux.min(1.0 - f32::EPSILON),
+        (0.5 - 0.5 * dir.y).clamp(0.0, 1.0),
+    )
 }
 
 /// Uniform direction on the local hemisphere `z >= 0`: `cos theta = u.x`, `phi = 2 pi u.y`.
@@ -162,7 +165,10 @@ impl Frame {
     /// Debug builds assert that `n` is unit length.
     #[inline]
     pub fn from_normal(n: Vec3) -> Frame {
-        debug_assert!((n.length_squared() - 1.0).abs() < 1e-3, "normal must be unit");
+        debug_assert!(
+            (n.length_squared() - 1.0).abs() < 1e-3,
+            "normal must be unit"
+        );
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let b = n.x * n.y * a;
@@ -242,7 +248,10 @@ impl Rng {
 
     /// Generator seeded with `seed` on sequence `stream`.
     pub fn new(seed: u64, stream: u64) -> Rng {
-        let mut rng = Rng { state: 0, inc: (stream << 1) | 1 };
+        let mut rng = Rng {
+            state: 0,
+            inc: (stream << 1) | 1,
+        };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(seed);
         rng.next_u32();
@@ -303,7 +312,11 @@ mod tests {
         inverse: impl Fn(Vec3) -> Vec2,
     ) {
         let mut rng = Rng::new(7, 3);
-        let res = chi2_sphere_test(&ChiTest::default(), |_| warp(rng.next_vec2()), |d| pdf(d) as f64);
+        let res = chi2_sphere_test(
+            &ChiTest::default(),
+            |_| warp(rng.next_vec2()),
+            |d| pdf(d) as f64,
+        );
         assert!(res.passed, "{name}: {res:?}");
         let mut rng = Rng::new(1, 1);
         for _ in 0..2000 {
@@ -311,7 +324,10 @@ mod tests {
             let d = warp(u);
             assert!((d.length() - 1.0).abs() < 1e-5, "{name}: not unit");
             let back = inverse(d);
-            assert!((back - u).abs().max_element() < 2e-4, "{name}: inverse {u} -> {back}");
+            assert!(
+                (back - u).abs().max_element() < 2e-4,
+                "{name}: inverse {u} -> {back}"
+            );
         }
     }
 
@@ -363,12 +379,22 @@ mod tests {
     #[test]
     fn frame_is_orthonormal() {
         let mut rng = Rng::new(3, 9);
-        let mut normals: Vec<Vec3> = (0..1000).map(|_| square_to_uniform_sphere(rng.next_vec2())).collect();
-        normals.extend([Vec3::Z, -Vec3::Z, Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, -0.99999994)]);
+        let mut normals: Vec<Vec3> = (0..1000)
+            .map(|_| square_to_uniform_sphere(rng.next_vec2()))
+            .collect();
+        normals.extend([
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(0.0, 0.0, -0.99999994),
+        ]);
         for n in normals {
             let f = Frame::from_normal(n);
             assert!((f.s.length() - 1.0).abs() < 1e-5 && (f.t.length() - 1.0).abs() < 1e-5);
-            assert!(f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5);
+            assert!(
+                f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5
+            );
             assert!((f.s.cross(f.t) - n).length() < 1e-5, "right-handed");
             let v = Vec3::new(0.3, -0.5, 0.8);
             assert!((f.to_local(f.to_world(v)) - v).length() < 1e-5);

@@ -115,7 +115,11 @@ mod sys {
         pub fn rtcCommitGeometry(geometry: RTCGeometry);
         pub fn rtcAttachGeometry(scene: RTCScene, geometry: RTCGeometry) -> c_uint;
         pub fn rtcReleaseGeometry(geometry: RTCGeometry);
-        pub fn rtcIntersect1(scene: RTCScene, ctx: *mut RTCIntersectContext, rayhit: *mut RTCRayHit);
+        pub fn rtcIntersect1(
+            scene: RTCScene,
+            ctx: *mut RTCIntersectContext,
+            rayhit: *mut RTCRayHit,
+        );
         pub fn rtcOccluded1(scene: RTCScene, ctx: *mut RTCIntersectContext, ray: *mut RTCRay);
         pub fn rtcIntersect1M(
             scene: RTCScene,
@@ -152,7 +156,9 @@ extern "C" fn on_error(user: *mut c_void, code: u32, msg: *const c_char) {
     let text = if msg.is_null() {
         String::new()
     } else {
-        unsafe { CStr::from_ptr(msg) }.to_string_lossy().into_owned()
+        unsafe { CStr::from_ptr(msg) }
+            .to_string_lossy()
+            .into_owned()
     };
     if let Ok(mut s) = slot.lock() {
         s.get_or_insert_with(|| format!("Embree error {code}: {text}"));
@@ -349,7 +355,10 @@ const STREAM: usize = 64;
 impl RayCaster for EmbreeScene {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut ctx = init_context();
-        let mut rh = sys::RTCRayHit { ray: to_rtc(ray), hit: empty_hit() };
+        let mut rh = sys::RTCRayHit {
+            ray: to_rtc(ray),
+            hit: empty_hit(),
+        };
         // SAFETY: committed scene, valid context and ray-hit structs of the header's layout.
         unsafe { sys::rtcIntersect1(self.scene, &mut ctx, &mut rh) };
         from_rtc(&rh)
@@ -397,7 +406,10 @@ impl RayCaster for EmbreeScene {
         let mut buf = [blank; STREAM];
         for (rs, os) in rays.chunks(STREAM).zip(out.chunks_mut(STREAM)) {
             for (b, r) in buf.iter_mut().zip(rs) {
-                *b = sys::RTCRayHit { ray: to_rtc(r), hit: empty_hit() };
+                *b = sys::RTCRayHit {
+                    ray: to_rtc(r),
+                    hit: empty_hit(),
+                };
             }
             // SAFETY: as in `occluded_many`.
             unsafe {

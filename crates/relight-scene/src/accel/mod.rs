@@ -25,7 +25,12 @@ impl Ray {
     /// A ray over `[tmin, tmax]`.
     #[inline]
     pub fn new(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
-        Ray { origin, dir, tmin, tmax }
+        Ray {
+            origin,
+            dir,
+            tmin,
+            tmax,
+        }
     }
 
     /// Point at parameter `t`.
@@ -146,7 +151,10 @@ pub fn build_default(mesh: &TriMesh) -> Box<dyn RayCaster> {
 /// Debug builds: if `ng` is not finite.
 #[inline]
 pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
-    debug_assert!(ng.is_finite(), "offset_ray_origin: non-finite normal {ng:?}");
+    debug_assert!(
+        ng.is_finite(),
+        "offset_ray_origin: non-finite normal {ng:?}"
+    );
     // Constants of the paper: below |x| < ORIGIN use a fixed float offset, else integer ULPs.
     const ORIGIN: f32 = 1.0 / 32.0;
     const FLOAT_SCALE: f32 = 1.0 / 65536.0;
@@ -159,8 +167,68 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
         let of_i = (INT_SCALE * nx) as i32;
         // Moving the bits away from zero grows |x|; towards zero shrinks it.
         let bits = x.to_bits() as i32;
-        let moved = if x < 0.0 { bits.wrapping_sub(of_i) } else { bits.wrapping_add(of_i) };
+        let moved = if x < 0.0 {
+            bits.wrapping_sub(of_i)
+        } else {
+            bits.wrapping_add(of_i)
+        };
         f32::from_bits(moved as u32)
     };
     Vec3::new(offset(p.x, n.x), offset(p.y, n.y), offset(p.z, n.z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bench::SplitMix64;
+
+    #[test]
+    fn offset_origin_avoids_self_intersection() {
+        // Triangles far from and near the world origin; rays leaving points on them to both
+        // sides must not re-hit the triangle they start on.
+        let mut rng = SplitMix64(3);
+        let mut r3 = |s: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * s;
+        for &(centre, size) in &[(0.0f32, 1.0f32), (0.01, 0.01), (1000.0, 5.0), (1e5, 50.0)] {
+            for _ in 0..40 {
+                let c = Vec3::splat(centre) + r3(centre.max(1.0));
+                let [a, b, cc] = [c + r3(size), c + r3(size), c + r3(size)];
+                let m = TriMesh {
+                    positions: vec![a, b, cc],
+                    normals: vec![Vec3::Y; 3],
+                    uvs: None,
+                    indices: vec![[0, 1, 2]],
+                    material_ids: vec![0],
+                };
+                let Ok(casters) = Backend::available()
+                    .iter()
+                    .map(|&k| build(&m, k))
+                    .collect::<Result<Vec<_>, _>>()
+                else {
+                    continue; // degenerate random triangle
+                };
+                let ng = m.geometric_normal(0);
+                for _ in 0..50 {
+                    let (u, v) = (r3(0.5).x, r3(0.5).y);
+                    let p = m.point(0, u, v);
+                    let d = (r3(2.0) - Vec3::ONE).normalize_or(Vec3::X);
+                    if d.dot(ng).abs() < 1e-3 {
+                        continue;
+                    }
+                    let o = offset_ray_origin(p, ng, d);
+                    assert!(
+                        (o - p).dot(ng) * d.dot(ng) > 0.0,
+                        "origin moved to the wrong side"
+                    );
+                    for c in &casters {
+                        let r = Ray::new(o, d, 0.0, f32::INFINITY);
+                        assert!(
+                            !c.occluded(&r),
+                            "{}: self-hit from {p} (offset {o})",
+                            c.name()
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -23,18 +23,26 @@ pub fn read_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> 
     match extension(path).as_str() {
         "hdr" | "pic" | "rgbe" => read_hdr(path),
         "exr" => read_exr(path),
-        e => Err(SceneError::unsupported(path, format!("image extension '{e}' (expected hdr or exr)"))),
+        e => Err(SceneError::unsupported(
+            path,
+            format!("image extension '{e}' (expected hdr or exr)"),
+        )),
     }
 }
 
 fn check_size(path: &Path, w: usize, h: usize) -> Result<(), SceneError> {
     if w == 0 || h == 0 {
-        return Err(SceneError::malformed(path, format!("image size {w}x{h} is empty")));
+        return Err(SceneError::malformed(
+            path,
+            format!("image size {w}x{h} is empty"),
+        ));
     }
     if w > MAX_SIDE || h > MAX_SIDE || w.saturating_mul(h) > MAX_PIXELS {
         return Err(SceneError::too_large(
             path,
-            format!("image size {w}x{h} exceeds the limit ({MAX_SIDE} per side, {MAX_PIXELS} pixels)"),
+            format!(
+                "image size {w}x{h} exceeds the limit ({MAX_SIDE} per side, {MAX_PIXELS} pixels)"
+            ),
         ));
     }
     Ok(())
@@ -61,24 +69,40 @@ fn decode_hdr(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3>), Sc
         let end = rest.iter().position(|&b| b == b'\n')?;
         *pos += end + 1;
         line_no += 1;
-        Some((line_no, String::from_utf8_lossy(&rest[..end]).trim_end_matches('\r').to_string()))
+        Some((
+            line_no,
+            String::from_utf8_lossy(&rest[..end])
+                .trim_end_matches('\r')
+                .to_string(),
+        ))
     };
-    let (_, magic) = next_line(&mut pos).ok_or_else(|| SceneError::malformed(path, "empty or truncated header"))?;
-    if !(magic.starts_with("#?RADIANCE") || magic.starts_with("#?RGBE") || magic.starts_with("#?")) {
-        return Err(SceneError::malformed_at(path, 1, "not a Radiance HDR file (no '#?' signature)"));
+    let (_, magic) = next_line(&mut pos)
+        .ok_or_else(|| SceneError::malformed(path, "empty or truncated header"))?;
+    if !(magic.starts_with("#?RADIANCE") || magic.starts_with("#?RGBE") || magic.starts_with("#?"))
+    {
+        return Err(SceneError::malformed_at(
+            path,
+            1,
+            "not a Radiance HDR file (no '#?' signature)",
+        ));
     }
     loop {
-        let (n, line) = next_line(&mut pos).ok_or_else(|| SceneError::malformed(path, "truncated header (no blank line)"))?;
+        let (n, line) = next_line(&mut pos)
+            .ok_or_else(|| SceneError::malformed(path, "truncated header (no blank line)"))?;
         if line.is_empty() {
             break;
         }
         if let Some(fmt) = line.strip_prefix("FORMAT=") {
             if fmt.trim() != "32-bit_rle_rgbe" {
-                return Err(SceneError::unsupported(path, format!("line {n}: FORMAT={fmt} (only 32-bit_rle_rgbe)")));
+                return Err(SceneError::unsupported(
+                    path,
+                    format!("line {n}: FORMAT={fmt} (only 32-bit_rle_rgbe)"),
+                ));
             }
         }
     }
-    let (n, res) = next_line(&mut pos).ok_or_else(|| SceneError::malformed(path, "missing resolution line"))?;
+    let (n, res) = next_line(&mut pos)
+        .ok_or_else(|| SceneError::malformed(path, "missing resolution line"))?;
     let t: Vec<&str> = res.split_whitespace().collect();
     let bad_res = || SceneError::malformed_at(path, n, format!("bad resolution line '{res}'"));
     if t.len() != 4 {
@@ -90,7 +114,10 @@ fn decode_hdr(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3>), Sc
         ("-Y", "-X") => (false, true),
         ("+Y", "-X") => (true, true),
         _ => {
-            return Err(SceneError::unsupported(path, format!("line {n}: orientation '{res}' (transposed images)")))
+            return Err(SceneError::unsupported(
+                path,
+                format!("line {n}: orientation '{res}' (transposed images)"),
+            ))
         }
     };
     let h: usize = t[1].parse().map_err(|_| bad_res())?;
@@ -100,17 +127,28 @@ fn decode_hdr(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3>), Sc
     // old-style run codes at least 4 bytes per 255 * 128 pixels. A file too small for its
     // announced size is refused before allocating.
     let rle = (8..0x8000).contains(&w) && bytes[pos..].starts_with(&[2, 2]);
-    let per_line = if rle { 4 + 8 * w.div_ceil(127) } else { 4 * w.div_ceil(128 * 255) };
+    let per_line = if rle {
+        4 + 8 * w.div_ceil(127)
+    } else {
+        4 * w.div_ceil(128 * 255)
+    };
     let min_bytes = h.saturating_mul(per_line);
     if bytes.len() - pos < min_bytes {
-        return Err(SceneError::malformed(path, format!("truncated: {w}x{h} needs more than {} bytes of pixels", bytes.len() - pos)));
+        return Err(SceneError::malformed(
+            path,
+            format!(
+                "truncated: {w}x{h} needs more than {} bytes of pixels",
+                bytes.len() - pos
+            ),
+        ));
     }
     let mut rgbe = vec![[0u8; 4]; w * h];
     let data = &bytes[pos..];
     let mut cur = 0usize;
     for y in 0..h {
         let row = &mut rgbe[y * w..(y + 1) * w];
-        cur = decode_scanline(data, cur, row).map_err(|m| SceneError::malformed(path, format!("scanline {y}: {m}")))?;
+        cur = decode_scanline(data, cur, row)
+            .map_err(|m| SceneError::malformed(path, format!("scanline {y}: {m}")))?;
     }
     let mut px = vec![Vec3::ZERO; w * h];
     for y in 0..h {
@@ -127,7 +165,8 @@ fn decode_hdr(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3>), Sc
 fn decode_scanline(data: &[u8], mut cur: usize, row: &mut [[u8; 4]]) -> Result<usize, String> {
     let w = row.len();
     let take = |cur: usize, n: usize| -> Result<&[u8], String> {
-        data.get(cur..cur + n).ok_or_else(|| "truncated pixel data".to_string())
+        data.get(cur..cur + n)
+            .ok_or_else(|| "truncated pixel data".to_string())
     };
     let head = take(cur, 4)?;
     if (8..0x8000).contains(&w) && head[0] == 2 && head[1] == 2 && head[2] & 0x80 == 0 {
@@ -207,7 +246,7 @@ pub fn rgbe_to_rgb(p: [u8; 4]) -> Vec3 {
 pub fn rgb_to_rgbe(c: Vec3) -> [u8; 4] {
     let c = Vec3::new(c.x.max(0.0), c.y.max(0.0), c.z.max(0.0)); // max() maps NaN to 0
     let m = c.max_element();
-    if !(m >= 1e-32) {
+    if m.is_nan() || m < 1e-32 {
         return [0; 4];
     }
     let m = m.min(f32::MAX) as f64;
@@ -232,10 +271,15 @@ pub fn rgb_to_rgbe(c: Vec3) -> [u8; 4] {
 pub fn write_hdr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), SceneError> {
     check_write(path, w, h, px)?;
     let mut out = Vec::with_capacity(w * h * 4 + 128);
-    out.extend_from_slice(format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n").as_bytes());
+    out.extend_from_slice(
+        format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n").as_bytes(),
+    );
     let mut planes = [vec![0u8; w], vec![0u8; w], vec![0u8; w], vec![0u8; w]];
     for y in 0..h {
-        let row: Vec<[u8; 4]> = px[y * w..(y + 1) * w].iter().map(|&c| rgb_to_rgbe(c)).collect();
+        let row: Vec<[u8; 4]> = px[y * w..(y + 1) * w]
+            .iter()
+            .map(|&c| rgb_to_rgbe(c))
+            .collect();
         if !(8..0x8000).contains(&w) {
             row.iter().for_each(|p| out.extend_from_slice(p));
             continue;
@@ -248,7 +292,9 @@ pub fn write_hdr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Sce
             encode_rle_plane(&planes[c], &mut out);
         }
     }
-    write_atomic(path, |tmp| std::fs::write(tmp, &out).map_err(|e| SceneError::io(tmp, e)))
+    write_atomic(path, |tmp| {
+        std::fs::write(tmp, &out).map_err(|e| SceneError::io(tmp, e))
+    })
 }
 
 /// Encode one channel plane as runs (> 128: repeat) and dumps (<= 128: literal).
@@ -280,10 +326,16 @@ fn encode_rle_plane(p: &[u8], out: &mut Vec<u8>) {
 fn check_write(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), SceneError> {
     check_size(path, w, h)?;
     if px.len() != w * h {
-        return Err(SceneError::malformed(path, format!("{} pixels given for a {w}x{h} image", px.len())));
+        return Err(SceneError::malformed(
+            path,
+            format!("{} pixels given for a {w}x{h} image", px.len()),
+        ));
     }
     if let Some(i) = px.iter().position(|c| !c.is_finite()) {
-        return Err(SceneError::malformed(path, format!("pixel (x {}, y {}) is not finite: {}", i % w, i / w, px[i])));
+        return Err(SceneError::malformed(
+            path,
+            format!("pixel (x {}, y {}) is not finite: {}", i % w, i / w, px[i]),
+        ));
     }
     Ok(())
 }
@@ -299,12 +351,26 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
     let fail = |e: exr::error::Error| SceneError::malformed(path, format!("OpenEXR: {e}"));
     // Check announced sizes before decoding anything.
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
-    let meta = catch(path, || exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false))?
-        .map_err(fail)?;
-    let header = meta.headers.iter().find(|h| !h.deep).ok_or_else(|| SceneError::unsupported(path, "only deep-data layers"))?;
+    let meta = catch(path, || {
+        exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
+    })?
+    .map_err(fail)?;
+    let header = meta
+        .headers
+        .iter()
+        .find(|h| !h.deep)
+        .ok_or_else(|| SceneError::unsupported(path, "only deep-data layers"))?;
     check_size(path, header.layer_size.0, header.layer_size.1)?;
-    if header.channels.list.iter().any(|c| c.sampling != Vec2(1, 1)) {
-        return Err(SceneError::unsupported(path, "subsampled channels (chroma subsampling)"));
+    if header
+        .channels
+        .list
+        .iter()
+        .any(|c| c.sampling != Vec2(1, 1))
+    {
+        return Err(SceneError::unsupported(
+            path,
+            "subsampled channels (chroma subsampling)",
+        ));
     }
     let image = catch(path, || {
         read()
@@ -327,7 +393,8 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
             s == name || s.rsplit('.').next() == Some(name)
         })
     };
-    let to_f32 = |c: &AnyChannel<FlatSamples>| -> Vec<f32> { c.sample_data.values_as_f32().collect() };
+    let to_f32 =
+        |c: &AnyChannel<FlatSamples>| -> Vec<f32> { c.sample_data.values_as_f32().collect() };
     let planes: [Vec<f32>; 3] = match (find("R"), find("G"), find("B"), find("Y")) {
         (Some(r), Some(g), Some(b), _) => [to_f32(r), to_f32(g), to_f32(b)],
         (_, _, _, Some(y)) => {
@@ -336,13 +403,21 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
         }
         _ => {
             let names: Vec<String> = channels.iter().map(|c| c.name.to_string()).collect();
-            return Err(SceneError::unsupported(path, format!("channels {names:?} (need R, G, B or Y)")));
+            return Err(SceneError::unsupported(
+                path,
+                format!("channels {names:?} (need R, G, B or Y)"),
+            ));
         }
     };
     if planes.iter().any(|p| p.len() != w * h) {
-        return Err(SceneError::malformed(path, "channel sample count does not match the image size"));
+        return Err(SceneError::malformed(
+            path,
+            "channel sample count does not match the image size",
+        ));
     }
-    let px = (0..w * h).map(|i| Vec3::new(planes[0][i], planes[1][i], planes[2][i])).collect();
+    let px = (0..w * h)
+        .map(|i| Vec3::new(planes[0][i], planes[1][i], planes[2][i]))
+        .collect();
     Ok((w, h, px))
 }
 
@@ -362,7 +437,12 @@ pub fn write_exr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Sce
             let c = px[y * w + x];
             (c.x, c.y, c.z)
         });
-        let mut layer = Layer::new((w, h), LayerAttributes::default(), Encoding::SMALL_LOSSLESS, channels);
+        let mut layer = Layer::new(
+            (w, h),
+            LayerAttributes::default(),
+            Encoding::SMALL_LOSSLESS,
+            channels,
+        );
         layer.encoding.compression = Compression::ZIP16;
         Image::from_layer(layer)
             .write()
@@ -380,7 +460,10 @@ pub fn write_exr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Sce
 pub fn write_png_srgb8(path: &Path, w: usize, h: usize, px: &[[u8; 3]]) -> Result<(), SceneError> {
     check_size(path, w, h)?;
     if px.len() != w * h {
-        return Err(SceneError::malformed(path, format!("{} pixels given for a {w}x{h} image", px.len())));
+        return Err(SceneError::malformed(
+            path,
+            format!("{} pixels given for a {w}x{h} image", px.len()),
+        ));
     }
     write_atomic(path, |tmp| {
         let file = std::fs::File::create(tmp).map_err(|e| SceneError::io(tmp, e))?;
@@ -403,7 +486,13 @@ mod tests {
 
     fn gradient(w: usize, h: usize) -> Vec<Vec3> {
         (0..w * h)
-            .map(|i| Vec3::new((i % w) as f32 * 0.37 + 0.01, (i / w) as f32 * 3.1, 1000.0 / (1.0 + i as f32)))
+            .map(|i| {
+                Vec3::new(
+                    (i % w) as f32 * 0.37 + 0.01,
+                    (i / w) as f32 * 3.1,
+                    1000.0 / (1.0 + i as f32),
+                )
+            })
             .collect()
     }
 
@@ -457,7 +546,10 @@ mod tests {
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..bytes.len() - 50]).unwrap();
         let e = read_image(&p).unwrap_err();
-        assert!(e.to_string().contains("t.hdr") && e.to_string().contains("truncated"), "{e}");
+        assert!(
+            e.to_string().contains("t.hdr") && e.to_string().contains("truncated"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -475,12 +567,23 @@ mod tests {
     fn hdr_absurd_size_is_refused_before_allocating() {
         let dir = temp_dir("hdrhuge");
         let p = dir.join("huge.hdr");
-        std::fs::write(&p, b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n\x02\x02").unwrap();
+        std::fs::write(
+            &p,
+            b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 100000\n\x02\x02",
+        )
+        .unwrap();
         let e = read_image(&p).unwrap_err();
         assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
         // Within the limits but far more than the file holds.
-        std::fs::write(&p, b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 16000 +X 16000\n\x02\x02").unwrap();
-        assert!(read_image(&p).unwrap_err().to_string().contains("truncated"));
+        std::fs::write(
+            &p,
+            b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 16000 +X 16000\n\x02\x02",
+        )
+        .unwrap();
+        assert!(read_image(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
     }
 
     #[test]
@@ -495,6 +598,41 @@ mod tests {
         std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
         let e = read_image(&p).unwrap_err();
         assert!(e.to_string().contains("bad.exr"), "{e}");
+    }
+
+    #[test]
+    fn missing_image_is_an_io_error() {
+        let p = temp_dir("imgmissing").join("gone.exr");
+        let e = read_image(&p).unwrap_err();
+        assert!(
+            matches!(e, SceneError::Io { .. }) && e.to_string().contains("gone.exr"),
+            "{e}"
+        );
+        assert!(matches!(
+            read_image(&p.with_extension("hdr")).unwrap_err(),
+            SceneError::Io { .. }
+        ));
+    }
+
+    #[test]
+    fn exr_absurd_data_window_is_refused() {
+        let dir = temp_dir("exrhuge");
+        let p = dir.join("huge.exr");
+        write_exr(&p, 4, 4, &gradient(4, 4)).unwrap();
+        let mut bytes = std::fs::read(&p).unwrap();
+        // Patch dataWindow (box2i: xMin, yMin, xMax, yMax) to 100000 x 100000 pixels.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("dataWindow attribute")
+            + key.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_image(&p).unwrap_err();
+        assert!(e.to_string().contains("huge.exr"), "{e}");
     }
 
     #[test]

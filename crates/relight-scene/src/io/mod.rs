@@ -5,6 +5,9 @@
 //! * images: [`image`] (Radiance `.hdr`, OpenEXR, 8-bit sRGB PNG);
 //! * environments: [`env`] (latlong, vertical cross, angular probe) through [`load_env`].
 //!
+//! The per-format `read_*` functions are the raw parsers (no degenerate-triangle removal, normals
+//! possibly missing); [`load_mesh`] is the entry point that finishes and validates the mesh.
+//!
 //! Every reader checks sizes announced by a file against the bytes it actually has before
 //! allocating, and returns [`SceneError`] (never panics) on bad input. Every writer is atomic:
 //! it writes `<name>.tmp-<pid>` in the destination folder and renames it over `<name>`.
@@ -17,6 +20,7 @@ pub mod ply;
 
 pub use env::load_env;
 pub use image::{read_image, write_exr, write_hdr, write_png_srgb8};
+pub use ply::write_ply;
 
 use crate::error::SceneError;
 use crate::material::Material;
@@ -61,13 +65,15 @@ pub fn load_mesh(path: &Path) -> Result<LoadedMesh, SceneError> {
 pub(crate) fn finish_mesh(path: &Path, loaded: &mut LoadedMesh) -> Result<(), SceneError> {
     let dropped = meshops::drop_degenerate(&mut loaded.mesh);
     if dropped > 0 {
-        loaded
-            .warnings
-            .push(format!("{}: dropped {dropped} degenerate triangles", path.display()));
+        loaded.warnings.push(format!(
+            "{}: dropped {dropped} degenerate triangles",
+            path.display()
+        ));
     }
     meshops::check_non_empty(&loaded.mesh).map_err(|m| SceneError::invalid_mesh(path, m))?;
     if loaded.mesh.normals.len() != loaded.mesh.positions.len() {
-        loaded.mesh.normals = meshops::smooth_normals(&loaded.mesh, meshops::NormalWeighting::Angle);
+        loaded.mesh.normals =
+            meshops::smooth_normals(&loaded.mesh, meshops::NormalWeighting::Angle);
     }
     if loaded.materials.is_empty() {
         loaded.materials.push(Material::default());
@@ -107,7 +113,8 @@ pub(crate) fn write_atomic(
     let mut tmp_name = name.to_os_string();
     tmp_name.push(format!(".tmp-{}", std::process::id()));
     let tmp: PathBuf = path.with_file_name(tmp_name);
-    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| SceneError::io(path, e)));
+    let result =
+        write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| SceneError::io(path, e)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
@@ -155,7 +162,10 @@ mod tests {
     fn atomic_write_leaves_no_temporary() {
         let dir = test_util::temp_dir("atomic");
         let p = dir.join("out.bin");
-        write_atomic(&p, |t| std::fs::write(t, b"abc").map_err(|e| SceneError::io(t, e))).unwrap();
+        write_atomic(&p, |t| {
+            std::fs::write(t, b"abc").map_err(|e| SceneError::io(t, e))
+        })
+        .unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"abc");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
     }

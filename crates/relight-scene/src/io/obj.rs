@@ -42,8 +42,11 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
         match key {
             "v" => pos.push(Vec3::from(parse_floats::<3>(&mut it).map_err(err)?)),
             "vt" => {
-                let mut vals = it.map(|s| parse_f32(s));
-                let u = vals.next().ok_or_else(|| err("vt needs a u coordinate".into()))?.map_err(err)?;
+                let mut vals = it.map(parse_f32);
+                let u = vals
+                    .next()
+                    .ok_or_else(|| err("vt needs a u coordinate".into()))?
+                    .map_err(err)?;
                 let v = vals.next().unwrap_or(Ok(0.0)).map_err(err)?;
                 tex.push(Vec2::new(u, v));
             }
@@ -55,7 +58,9 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
                     let v = resolve(parts.next(), pos.len(), "vertex").map_err(err)?;
                     let t = resolve(parts.next(), tex.len(), "texture coordinate").map_err(err)?;
                     let n = resolve(parts.next(), nor.len(), "normal").map_err(err)?;
-                    let Some(v) = v else { return Err(err(format!("face corner '{tok}' has no vertex index"))) };
+                    let Some(v) = v else {
+                        return Err(err(format!("face corner '{tok}' has no vertex index")));
+                    };
                     any_vt |= t.is_some();
                     any_missing_vt |= t.is_none();
                     any_missing_vn |= n.is_none();
@@ -63,13 +68,18 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
                     let id = *corner_map.entry(key).or_insert_with(|| {
                         mesh.positions.push(pos[v as usize]);
                         mesh.normals.push(n.map_or(Vec3::ZERO, |n| nor[n as usize]));
-                        mesh.uvs.get_or_insert_with(Vec::new).push(t.map_or(Vec2::ZERO, |t| tex[t as usize]));
+                        mesh.uvs
+                            .get_or_insert_with(Vec::new)
+                            .push(t.map_or(Vec2::ZERO, |t| tex[t as usize]));
                         mesh.positions.len() as u32 - 1
                     });
                     corners.push(id);
                 }
                 if corners.len() < 3 {
-                    return Err(err(format!("face has {} vertices (needs at least 3)", corners.len())));
+                    return Err(err(format!(
+                        "face has {} vertices (needs at least 3)",
+                        corners.len()
+                    )));
                 }
                 let mat = match current {
                     Some(m) => m,
@@ -120,7 +130,10 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
     }
     if !any_vt || any_missing_vt {
         if any_vt {
-            warnings.push(format!("{}: some face corners have no texture coordinates; UVs dropped", path.display()));
+            warnings.push(format!(
+                "{}: some face corners have no texture coordinates; UVs dropped",
+                path.display()
+            ));
         }
         mesh.uvs = None;
     }
@@ -133,7 +146,11 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
             })?;
         }
     }
-    Ok(LoadedMesh { mesh, materials, warnings })
+    Ok(LoadedMesh {
+        mesh,
+        materials,
+        warnings,
+    })
 }
 
 fn parse_f32(s: &str) -> Result<f32, String> {
@@ -144,21 +161,34 @@ fn parse_f32(s: &str) -> Result<f32, String> {
     }
 }
 
-fn parse_floats<'a, const N: usize>(it: &mut impl Iterator<Item = &'a str>) -> Result<[f32; N], String> {
+fn parse_floats<'a, const N: usize>(
+    it: &mut impl Iterator<Item = &'a str>,
+) -> Result<[f32; N], String> {
     let mut out = [0.0; N];
     for (k, o) in out.iter_mut().enumerate() {
-        *o = parse_f32(it.next().ok_or_else(|| format!("expected {N} numbers, found {k}"))?)?;
+        *o = parse_f32(
+            it.next()
+                .ok_or_else(|| format!("expected {N} numbers, found {k}"))?,
+        )?;
     }
     Ok(out)
 }
 
 /// Resolve a 1-based (or negative, relative) OBJ index against `count` items.
 fn resolve(tok: Option<&str>, count: usize, what: &str) -> Result<Option<u32>, String> {
-    let Some(tok) = tok.filter(|t| !t.is_empty()) else { return Ok(None) };
-    let i: i64 = tok.parse().map_err(|_| format!("bad {what} index '{tok}'"))?;
+    let Some(tok) = tok.filter(|t| !t.is_empty()) else {
+        return Ok(None);
+    };
+    let i: i64 = tok
+        .parse()
+        .map_err(|_| format!("bad {what} index '{tok}'"))?;
     let idx = if i > 0 { i - 1 } else { count as i64 + i };
     if i == 0 || idx < 0 || idx >= count as i64 {
-        let plural = if what == "vertex" { "vertices".to_string() } else { format!("{what}s") };
+        let plural = if what == "vertex" {
+            "vertices".to_string()
+        } else {
+            format!("{what}s")
+        };
         return Err(format!("face index {i} out of range ({count} {plural})"));
     }
     Ok(Some(idx as u32))
@@ -173,7 +203,11 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
     }
     let finish = |r: &Raw| {
         if r.ks.max_element() > 0.0 && r.ns > 0.0 {
-            Material::BlinnPhong { diffuse: r.kd, specular: r.ks, exponent: r.ns }
+            Material::BlinnPhong {
+                diffuse: r.kd,
+                specular: r.ks,
+                exponent: r.ns,
+            }
         } else {
             Material::Lambert { albedo: r.kd }
         }
@@ -191,10 +225,19 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
                     out.insert(n, finish(&r));
                 }
                 let name = line["newmtl".len()..].trim().to_string();
-                cur = Some((name, Raw { kd: Vec3::splat(0.8), ks: Vec3::ZERO, ns: 0.0 }));
+                cur = Some((
+                    name,
+                    Raw {
+                        kd: Vec3::splat(0.8),
+                        ks: Vec3::ZERO,
+                        ns: 0.0,
+                    },
+                ));
             }
             "Kd" | "Ks" | "Ns" => {
-                let Some((_, r)) = cur.as_mut() else { return Err(err(format!("'{key}' before any newmtl"))) };
+                let Some((_, r)) = cur.as_mut() else {
+                    return Err(err(format!("'{key}' before any newmtl")));
+                };
                 if key == "Ns" {
                     r.ns = parse_floats::<1>(&mut it).map_err(err)?[0];
                 } else {
@@ -202,7 +245,11 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
                     if v.min_element() < 0.0 {
                         return Err(err(format!("negative reflectance {v}")));
                     }
-                    if key == "Kd" { r.kd = v } else { r.ks = v }
+                    if key == "Kd" {
+                        r.kd = v
+                    } else {
+                        r.ks = v
+                    }
                 }
             }
             _ => {}
@@ -231,31 +278,57 @@ mod tests {
     #[test]
     fn quads_fan_triangulate_and_materials_follow_usemtl() {
         let dir = temp_dir("obj");
-        write(&dir, "m.mtl", "newmtl red\nKd 1 0 0\nnewmtl shiny\nKd 0.2 0.2 0.2\nKs 0.5 0.5 0.5\nNs 40\n");
+        write(
+            &dir,
+            "m.mtl",
+            "newmtl red\nKd 1 0 0\nnewmtl shiny\nKd 0.2 0.2 0.2\nKs 0.5 0.5 0.5\nNs 40\n",
+        );
         let text = format!("mtllib m.mtl\n{QUAD}usemtl red\nf 1 2 3 4\nusemtl shiny\nf -4 -2 -1\nusemtl red\nf 1 2 3\n");
         let m = load_mesh(&write(&dir, "q.obj", &text)).unwrap();
         assert_eq!(m.mesh.triangle_count(), 4);
         assert_eq!(m.mesh.material_ids, vec![0, 0, 1, 0]);
         assert_eq!(m.materials[0], Material::Lambert { albedo: Vec3::X });
-        assert!(matches!(m.materials[1], Material::BlinnPhong { exponent: 40.0, .. }));
+        assert!(matches!(
+            m.materials[1],
+            Material::BlinnPhong { exponent: 40.0, .. }
+        ));
         assert!(m.warnings.is_empty(), "{:?}", m.warnings);
         // Computed normals of the z = 0 quad face +Z.
-        assert!(m.mesh.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+        assert!(m
+            .mesh
+            .normals
+            .iter()
+            .all(|n| (*n - Vec3::Z).length() < 1e-6));
     }
 
     #[test]
     fn missing_mtl_is_a_warning() {
         let dir = temp_dir("objmtl");
-        let m = load_mesh(&write(&dir, "q.obj", &format!("mtllib gone.mtl\n{QUAD}usemtl x\nf 1 2 3\n"))).unwrap();
+        let m = load_mesh(&write(
+            &dir,
+            "q.obj",
+            &format!("mtllib gone.mtl\n{QUAD}usemtl x\nf 1 2 3\n"),
+        ))
+        .unwrap();
         assert_eq!(m.materials, vec![Material::default()]);
-        assert!(m.warnings.iter().any(|w| w.contains("gone.mtl")), "{:?}", m.warnings);
+        assert!(
+            m.warnings.iter().any(|w| w.contains("gone.mtl")),
+            "{:?}",
+            m.warnings
+        );
     }
 
     #[test]
     fn index_out_of_range_names_file_and_line() {
         let dir = temp_dir("objbad");
         let e = load_mesh(&write(&dir, "bad.obj", &format!("{QUAD}f 1 2 900\n"))).unwrap_err();
-        assert_eq!(e.to_string(), format!("{}: line 5: face index 900 out of range (4 vertices)", dir.join("bad.obj").display()));
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: line 5: face index 900 out of range (4 vertices)",
+                dir.join("bad.obj").display()
+            )
+        );
     }
 
     #[test]
@@ -281,9 +354,20 @@ mod tests {
     #[test]
     fn degenerate_triangles_are_reported() {
         let dir = temp_dir("objdeg");
-        let m = load_mesh(&write(&dir, "d.obj", &format!("{QUAD}f 1 2 3\nf 1 1 2\nv 2 0 0\nf 1 2 5\n"))).unwrap();
+        let m = load_mesh(&write(
+            &dir,
+            "d.obj",
+            &format!("{QUAD}f 1 2 3\nf 1 1 2\nv 2 0 0\nf 1 2 5\n"),
+        ))
+        .unwrap();
         assert_eq!(m.mesh.triangle_count(), 1);
-        assert!(m.warnings.iter().any(|w| w.contains("dropped 2 degenerate")), "{:?}", m.warnings);
+        assert!(
+            m.warnings
+                .iter()
+                .any(|w| w.contains("dropped 2 degenerate")),
+            "{:?}",
+            m.warnings
+        );
     }
 
     /// Triangle and vertex counts of SOURCES.md (vertices: used ones; spot splits at UV seams).
@@ -297,7 +381,9 @@ mod tests {
             ("armadillo.obj", 29_170, 14_587),
             ("spot.obj", 5_856, 0),
         ] {
-            let Some(p) = shared_file(&format!("data/meshes/{name}")) else { return };
+            let Some(p) = shared_file(&format!("data/meshes/{name}")) else {
+                return;
+            };
             let m = load_mesh(&p).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(m.mesh.triangle_count(), tris, "{name}: {:?}", m.warnings);
             if verts > 0 {
@@ -310,7 +396,9 @@ mod tests {
 
     #[test]
     fn teapot_welds_to_published_count() {
-        let Some(p) = shared_file("data/meshes/teapot.obj") else { return };
+        let Some(p) = shared_file("data/meshes/teapot.obj") else {
+            return;
+        };
         let m = load_mesh(&p).unwrap();
         // SOURCES.md: welding at 1e-4 leaves 3,241 vertices.
         assert_eq!(crate::meshops::weld(&m.mesh, 1e-4).vertex_count(), 3_241);

@@ -1,0 +1,459 @@
+//! Diffuse SH precomputed radiance transfer (Sloan, Kautz & Snyder 2002; thesis ch. 4.2).
+//!
+//! ## What a transfer vector is
+//!
+//! Lighting is a distant environment `L(w)` (radiance arriving from world direction `w`),
+//! projected to real SH of order `n` (`n^2` coefficients, conventions of `relight_sphere`):
+//! `L_i = ∫ L(w) y_i(w) dw` (thesis eq. 4.2; Sloan 2002 sec. 4). A per-vertex transfer vector
+//! `T_p` turns it into outgoing radiance by a dot product, `L_o(p) = sum_i T_p,i L_i`, which is
+//! exactly `L_o = ∫ T(w) L(w) dw` for lighting band-limited to order `n`.
+//!
+//! With `H_p(w) = max(0, n_p . w)` (the clamped cosine around the vertex's unit shading
+//! normal), `V_p(w)` the visibility of the environment from `p`, and `rho_p` the vertex's
+//! diffuse albedo ([`crate::transport::vertex_albedo`]):
+//!
+//! | kind | `T_p,i` | albedo | cosine | 1/pi | channels |
+//! |---|---|---|---|---|---|
+//! | [`ShTransferKind::Unshadowed`] | `(1/pi) ∫ y_i H_p dw` | no | yes | yes | 1 |
+//! | [`ShTransferKind::Shadowed`] | `(1/pi) ∫ y_i V_p H_p dw` | no | yes | yes | 1 |
+//! | [`ShTransferKind::Interreflected`] | `sum_{k=0..=b} T^k_p,i` (below) | yes | yes | yes | 3 (RGB) |
+//!
+//! These are the diffuse transfers of Sloan et al. 2002, sec. 5 (unshadowed, shadowed,
+//! interreflected), without the albedo for the single-channel kinds: multiply by `rho_p` at
+//! render time (`L_o = rho_p sum_i T_p,i L_i`), so albedo stays editable after the bake. With
+//! `L = 1` everywhere and no occlusion, `L_o = rho_p`.
+//!
+//! Interreflected transfer is the truncated Neumann series of the thesis (eq. 2.31,
+//! `L = sum_k T^k E`, and its Figure 4.2 PRECOMPUTE-RADIOSITY; Sloan 2002 sec. 6's
+//! interreflection passes), per colour channel `c`:
+//! * `T^0_p = rho_p,c (1/pi) ∫ y_i V_p H_p dw` (direct, shadowed);
+//! * `T^{k+1}_p = rho_p,c (1/pi) ∫ Tbar^k(q(p, w)) (1 - V_p(w)) H_p(w) dw`, where `q(p, w)`
+//!   is the closest hit of the ray from `p` in direction `w` and `Tbar^k(q)` interpolates
+//!   bounce `k`'s transfer of the hit triangle's vertices with the hit's barycentrics
+//!   (the field-radiance operator G of thesis eq. 2.24 followed by the local reflection R of
+//!   eq. 2.25). Surfaces are one-sided, as in Mitsuba: a ray hitting a triangle's back
+//!   (`n_g . w >= 0`) gathers nothing, but still blocks the environment.
+//!
+//! ## How it is computed
+//!
+//! * Unshadowed transfer is exact, in closed form (Ramamoorthi & Hanrahan 2001, eq. 7,
+//!   `E(n) = sum_lm A_l L_lm Y_lm(n)`, divided by pi): `T_p,lm = (A_l / pi) y_lm(n_p)` with
+//!   the clamped-cosine coefficients of their eqs. 8-9 (`A_0 = pi`, `A_1 = 2 pi / 3`,
+//!   `A_2 = pi / 4`, zero for odd `l > 1`; `relight_sphere::sh::clamped_cosine_zonal`).
+//!   No rays, no noise.
+//! * Shadowed and interreflected transfer are Monte Carlo integrals with `samples` cosine-
+//!   weighted directions per vertex (pdf `H_p / pi`, so each sample weighs `1 / samples`): a
+//!   Hammersley set with a per-vertex Cranley-Patterson rotation
+//!   ([`crate::transport::VertexSamples`]). Rays start at the vertex, offset along its
+//!   area-weighted geometric normal (Wächter & Binder 2019). Every pass of the Neumann series
+//!   retraces the same directions. The result depends on the seed only, not on the threads.
+//!
+//! ## Layout of [`ShTransfer::data`]
+//!
+//! Vertex-major, coefficient-major inside, channel innermost:
+//! `data[(v * n^2 + i) * channels + c]`. Relighting a frame reads it once, front to back, each
+//! vertex's `n^2 * channels` floats contiguous beside its neighbours', while the light vector
+//! (`n^2` RGB values, under 1.2 KB for order 10) stays in L1: one sequential stream, which is
+//! what makes the per-frame cost memory-bandwidth bound (see `relight_render::shade_sh`).
+
+use crate::transport::{
+    check_mesh, progress_bar, surface_ray, vertex_albedo, vertex_geometric_normals, with_threads,
+    VertexSamples,
+};
+use crate::BakeError;
+use glam::Vec3;
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+use relight_scene::accel::{Ray, RayCaster};
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_sphere::sh::{clamped_cosine_zonal, eval_sh, sh_count, MAX_ORDER};
+use std::f32::consts::PI;
+
+/// Which diffuse transfer to bake (Sloan et al. 2002, sec. 5). A closed set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ShTransferKind {
+    /// Cosine only, no visibility (closed form, exact). Single channel, albedo excluded.
+    Unshadowed,
+    /// Cosine and visibility of the environment. Single channel, albedo excluded.
+    Shadowed,
+    /// Shadowed transfer plus `bounces` diffuse interreflections (Neumann series). RGB,
+    /// albedo included (colour bleeding from per-vertex albedo).
+    Interreflected {
+        /// Number of indirect bounces after the direct one (0 = shadowed times albedo).
+        bounces: u32,
+    },
+}
+
+impl ShTransferKind {
+    /// Channels of the transfer: 1 (albedo excluded) or 3 (RGB, albedo included).
+    pub fn channels(&self) -> usize {
+        match self {
+            ShTransferKind::Unshadowed | ShTransferKind::Shadowed => 1,
+            ShTransferKind::Interreflected { .. } => 3,
+        }
+    }
+
+    /// Number of passes over all vertices: 0 for the closed form, 1 + bounces otherwise.
+    fn ray_passes(&self) -> u64 {
+        match *self {
+            ShTransferKind::Unshadowed => 0,
+            ShTransferKind::Shadowed => 1,
+            ShTransferKind::Interreflected { bounces } => 1 + bounces as u64,
+        }
+    }
+}
+
+/// Settings of [`bake`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShBakeSettings {
+    /// SH order `n` (bands `0..n`, `n^2` coefficients), `1..=relight_sphere::sh::MAX_ORDER`.
+    pub order: usize,
+    /// Directions per vertex (and per Neumann pass), `>= 1`. Ignored by `Unshadowed`.
+    pub samples: u32,
+    /// Seed of the per-vertex sample rotations.
+    pub seed: u64,
+    /// Transfer to bake.
+    pub kind: ShTransferKind,
+    /// Worker threads; `None` = rayon's global pool (all cores).
+    pub threads: Option<usize>,
+    /// Show an indicatif progress bar on stderr.
+    pub progress: bool,
+}
+
+impl Default for ShBakeSettings {
+    /// Order 5, 1024 samples, seed 0, shadowed, all cores, no progress bar.
+    fn default() -> Self {
+        ShBakeSettings {
+            order: 5,
+            samples: 1024,
+            seed: 0,
+            kind: ShTransferKind::Shadowed,
+            threads: None,
+            progress: false,
+        }
+    }
+}
+
+/// Largest number of Neumann bounces accepted (each costs a full pass of rays; the series
+/// has long converged for albedos below 0.9).
+pub const MAX_BOUNCES: u32 = 64;
+
+impl ShBakeSettings {
+    /// Check the ranges documented on each field.
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] naming the offending setting.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        let err = |m: String| Err(BakeError::Settings(m));
+        if !(1..=MAX_ORDER).contains(&self.order) {
+            return err(format!("SH order {} is not in 1..={MAX_ORDER}", self.order));
+        }
+        if self.samples == 0 {
+            return err("samples must be at least 1".into());
+        }
+        if let ShTransferKind::Interreflected { bounces } = self.kind {
+            if bounces > MAX_BOUNCES {
+                return err(format!("{bounces} bounces is more than {MAX_BOUNCES}"));
+            }
+        }
+        if self.threads == Some(0) {
+            return err("threads must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// Baked per-vertex SH transfer (see the module docs for what it includes and its layout).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShTransfer {
+    /// SH order `n` (`n^2` coefficients per channel).
+    pub order: usize,
+    /// The transfer kind baked.
+    pub kind: ShTransferKind,
+    /// Number of vertices.
+    pub vertex_count: usize,
+    /// 1 = single-channel transfer without albedo; 3 = RGB transfer with albedo.
+    pub channels: usize,
+    /// `data[(v * n^2 + i) * channels + c]`, length `vertex_count * n^2 * channels`.
+    pub data: Vec<f32>,
+}
+
+impl ShTransfer {
+    /// Coefficients per channel, `n^2`.
+    pub fn coeff_count(&self) -> usize {
+        sh_count(self.order)
+    }
+
+    /// Floats per vertex, `n^2 * channels`.
+    pub fn stride(&self) -> usize {
+        self.coeff_count() * self.channels
+    }
+
+    /// The transfer of vertex `v` (`n^2 * channels` floats, channel innermost).
+    #[inline]
+    pub fn vertex(&self, v: usize) -> &[f32] {
+        let s = self.stride();
+        &self.data[v * s..(v + 1) * s]
+    }
+
+    /// Outgoing radiance of vertex `v` under SH lighting `light` (RGB coefficients, at least
+    /// `n^2`; extra coefficients are ignored). `albedo` multiplies single-channel transfer and
+    /// is ignored for RGB transfer, which includes it. A plain reference implementation; the
+    /// fast per-frame path is `relight_render::shade_sh::vertex_radiance`.
+    ///
+    /// # Panics
+    /// If `light` has fewer than `n^2` coefficients.
+    pub fn eval_vertex(&self, v: usize, albedo: Vec3, light: &[Vec3]) -> Vec3 {
+        let n2 = self.coeff_count();
+        let t = self.vertex(v);
+        match self.channels {
+            1 => albedo * (0..n2).map(|i| light[i] * t[i]).sum::<Vec3>(),
+            _ => (0..n2)
+                .map(|i| light[i] * Vec3::from_slice(&t[3 * i..3 * i + 3]))
+                .sum(),
+        }
+    }
+
+    /// Check every invariant: order in range, channels matching the kind, data length, finite
+    /// values.
+    ///
+    /// # Errors
+    /// A message naming the first violated invariant.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=MAX_ORDER).contains(&self.order) {
+            return Err(format!("order {} is not in 1..={MAX_ORDER}", self.order));
+        }
+        if self.channels != self.kind.channels() {
+            return Err(format!(
+                "{:?} transfer must have {} channels, has {}",
+                self.kind,
+                self.kind.channels(),
+                self.channels
+            ));
+        }
+        let expect = self.vertex_count * self.stride();
+        if self.data.len() != expect {
+            return Err(format!(
+                "data has {} floats, expected {} vertices x {} coefficients x {} channels = {expect}",
+                self.data.len(),
+                self.vertex_count,
+                self.coeff_count(),
+                self.channels
+            ));
+        }
+        if let Some(k) = self.data.iter().position(|x| !x.is_finite()) {
+            return Err(format!("non-finite value at vertex {}", k / self.stride()));
+        }
+        Ok(())
+    }
+}
+
+/// Bake per-vertex diffuse SH transfer of `mesh` (materials indexed by `mesh.material_ids`)
+/// with rays cast by `caster`, which must have been built over the same `mesh`.
+///
+/// # Errors
+/// Invalid settings, an inconsistent mesh, or a thread pool that cannot be started.
+pub fn bake(
+    mesh: &TriMesh,
+    materials: &[Material],
+    caster: &dyn RayCaster,
+    settings: &ShBakeSettings,
+) -> Result<ShTransfer, BakeError> {
+    settings.validate()?;
+    check_mesh(mesh, materials)?;
+    let passes = settings.kind.ray_passes().max(1);
+    let pb = progress_bar(
+        settings.progress,
+        passes * mesh.vertex_count() as u64,
+        "SH bake",
+    );
+    let data = with_threads(settings.threads, || {
+        let ctx = Ctx {
+            mesh,
+            caster,
+            order: settings.order,
+            n2: sh_count(settings.order),
+            samples: settings.samples,
+            seed: settings.seed,
+            ng: vertex_geometric_normals(mesh),
+            pb: &pb,
+        };
+        match settings.kind {
+            ShTransferKind::Unshadowed => ctx.unshadowed(),
+            ShTransferKind::Shadowed => ctx.shadowed(),
+            ShTransferKind::Interreflected { bounces } => {
+                ctx.interreflected(&vertex_albedo(mesh, materials), bounces)
+            }
+        }
+    })?;
+    pb.finish_and_clear();
+    Ok(ShTransfer {
+        order: settings.order,
+        kind: settings.kind,
+        vertex_count: mesh.vertex_count(),
+        channels: settings.kind.channels(),
+        data,
+    })
+}
+
+/// Vertices per parallel work item (and per progress-bar tick).
+const CHUNK: usize = 32;
+
+/// What every pass needs.
+struct Ctx<'a> {
+    mesh: &'a TriMesh,
+    caster: &'a dyn RayCaster,
+    order: usize,
+    n2: usize,
+    samples: u32,
+    seed: u64,
+    /// Per-vertex geometric normals (ray offsets).
+    ng: Vec<Vec3>,
+    pb: &'a ProgressBar,
+}
+
+impl Ctx<'_> {
+    /// Unit shading normal of `v`, `None` if degenerate.
+    fn normal(&self, v: usize) -> Option<Vec3> {
+        let n = self.mesh.normals[v].normalize_or_zero();
+        (n != Vec3::ZERO).then_some(n)
+    }
+
+    /// Run `f(v, out, scratch)` for every vertex, `out` being its `stride` floats of a new
+    /// zeroed array.
+    fn per_vertex<S: Send>(
+        &self,
+        stride: usize,
+        init: impl Fn() -> S + Sync + Send,
+        f: impl Fn(usize, &mut [f32], &mut S) + Sync + Send,
+    ) -> Vec<f32> {
+        let mut data = vec![0.0f32; self.mesh.vertex_count() * stride];
+        data.par_chunks_mut(stride * CHUNK)
+            .enumerate()
+            .for_each_init(init, |s, (ci, chunk)| {
+                for (k, out) in chunk.chunks_exact_mut(stride).enumerate() {
+                    f(ci * CHUNK + k, out, s);
+                }
+                self.pb.inc((chunk.len() / stride) as u64);
+            });
+        data
+    }
+
+    /// Closed form of R&H 2001: `T_lm = (A_l / pi) y_lm(n)`.
+    fn unshadowed(&self) -> Vec<f32> {
+        let a_over_pi: Vec<f32> = (0..self.order)
+            .map(|l| clamped_cosine_zonal(l) / PI)
+            .collect();
+        self.per_vertex(
+            self.n2,
+            || (),
+            |v, out, _| {
+                let Some(n) = self.normal(v) else { return };
+                eval_sh(self.order, n, out);
+                for l in 0..self.order {
+                    for x in &mut out[l * l..(l + 1) * (l + 1)] {
+                        *x *= a_over_pi[l];
+                    }
+                }
+            },
+        )
+    }
+
+    /// The rays of vertex `v` (all its sample directions), written to `rays`.
+    fn vertex_rays(&self, v: usize, n: Vec3, rays: &mut Vec<Ray>) -> VertexSamples {
+        let dirs = VertexSamples::new(self.seed, v, self.samples, n);
+        let p = self.mesh.positions[v];
+        rays.clear();
+        rays.extend((0..self.samples).map(|i| surface_ray(p, self.ng[v], dirs.dir(i))));
+        dirs
+    }
+
+    /// Single-channel shadowed transfer: `(1/N) sum_k V(w_k) y_i(w_k)` over cosine-weighted
+    /// directions (Sloan 2002 sec. 5, shadowed diffuse transfer).
+    fn shadowed(&self) -> Vec<f32> {
+        let init = || (Vec::new(), Vec::new(), vec![0.0f32; self.n2]);
+        self.per_vertex(self.n2, init, |v, out, (rays, occluded, y)| {
+            let Some(n) = self.normal(v) else { return };
+            self.vertex_rays(v, n, rays);
+            occluded.clear();
+            occluded.resize(rays.len(), false);
+            self.caster.occluded_many(rays, occluded);
+            for (ray, &blocked) in rays.iter().zip(occluded.iter()) {
+                if !blocked {
+                    eval_sh(self.order, ray.dir, y);
+                    out.iter_mut().zip(y.iter()).for_each(|(o, &yi)| *o += yi);
+                }
+            }
+            let w = 1.0 / self.samples as f32;
+            out.iter_mut().for_each(|o| *o *= w);
+        })
+    }
+
+    /// RGB interreflected transfer: shadowed times albedo, then `bounces` Neumann passes.
+    fn interreflected(&self, albedo: &[Vec3], bounces: u32) -> Vec<f32> {
+        let stride = 3 * self.n2;
+        // Bounce 0: direct, shadowed, with the receiver's albedo.
+        let mono = self.shadowed();
+        let mut prev = vec![0.0f32; self.mesh.vertex_count() * stride];
+        for (v, (out, t)) in prev
+            .chunks_exact_mut(stride)
+            .zip(mono.chunks_exact(self.n2))
+            .enumerate()
+        {
+            for (o3, &ti) in out.chunks_exact_mut(3).zip(t) {
+                o3.copy_from_slice(&(albedo[v] * ti).to_array());
+            }
+        }
+        let mut total = prev.clone();
+        for _ in 0..bounces {
+            let next = self.gather(&prev, albedo);
+            total.iter_mut().zip(&next).for_each(|(t, &x)| *t += x);
+            prev = next;
+        }
+        total
+    }
+
+    /// One Neumann pass: `T^{k+1}_p = rho_p (1/N) sum_k [front hit] Tbar^k(hit)`.
+    fn gather(&self, prev: &[f32], albedo: &[Vec3]) -> Vec<f32> {
+        let stride = 3 * self.n2;
+        let init = || (Vec::new(), vec![0.0f32; stride]);
+        self.per_vertex(stride, init, |v, out, (rays, acc)| {
+            let Some(n) = self.normal(v) else { return };
+            if albedo[v] == Vec3::ZERO {
+                return; // reflects nothing: skip its rays
+            }
+            self.vertex_rays(v, n, rays);
+            acc.fill(0.0);
+            for ray in rays.iter() {
+                let Some(hit) = self.caster.intersect(ray) else {
+                    continue;
+                };
+                let tri = hit.tri as usize;
+                // One-sided surfaces: the back of a triangle sends nothing.
+                if self.mesh.geometric_normal(tri).dot(ray.dir) >= 0.0 {
+                    continue;
+                }
+                let [a, b, c] = self.mesh.indices[tri].map(|i| i as usize * stride);
+                let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+                let (ta, tb, tc) = (
+                    &prev[a..a + stride],
+                    &prev[b..b + stride],
+                    &prev[c..c + stride],
+                );
+                for k in 0..stride {
+                    acc[k] += wa * ta[k] + wb * tb[k] + wc * tc[k];
+                }
+            }
+            let w = albedo[v] / self.samples as f32;
+            for (o3, a3) in out.chunks_exact_mut(3).zip(acc.chunks_exact(3)) {
+                o3[0] = a3[0] * w.x;
+                o3[1] = a3[1] * w.y;
+                o3[2] = a3[2] * w.z;
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,200 @@
+//! `relight bench`: the three measurements, each against a baseline measured in the
+//! same run (never asserted in tests; figures go to docs/RESULTS.md).
+//!
+//! 1. Ray throughput of every back-end on incoherent occlusion (and closest-hit) rays from the
+//!    surface of a ~100K-triangle mesh, as a ratio to Embree 3.
+//! 2. SH bake time of bunny_watertight.obj (order 4, 1024 samples, shadowed + 1 bounce), and
+//!    its overhead over casting the same rays with nothing else done.
+//! 3. SH relight time per frame for 1M vertices at order 5, against a STREAM-like copy.
+
+use anyhow::{anyhow, Result};
+use rayon::prelude::*;
+use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_bake::transport::{surface_ray, vertex_geometric_normals, VertexSamples};
+use relight_scene::accel::{self, bench::bench_occlusion, RayCaster};
+use relight_scene::mesh::TriMesh;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `relight bench`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Rays per throughput measurement.
+    #[arg(long, default_value_t = 2_000_000)]
+    pub rays: usize,
+    /// Mesh for the ray benchmark (default: ../shared/data/meshes/dragon.obj, 100K triangles,
+    /// else a procedural 100K-triangle sphere).
+    #[arg(long)]
+    pub ray_mesh: Option<PathBuf>,
+    /// Mesh for the bake benchmark (default: ../shared/data/meshes/bunny_watertight.obj, else a
+    /// procedural sphere on a plane).
+    #[arg(long)]
+    pub bake_mesh: Option<PathBuf>,
+    /// Vertices of the relight benchmark.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub relight_vertices: usize,
+    /// Fewer rays and samples (a quick smoke run).
+    #[arg(long)]
+    pub quick: bool,
+}
+
+fn shared_mesh(explicit: &Option<PathBuf>, rel: &str) -> Result<Option<(String, TriMesh)>> {
+    let path = match explicit {
+        Some(p) => Some(p.clone()),
+        None => relight_scene::testdata::shared_dir()
+            .map(|d| d.join(rel))
+            .filter(|p| p.is_file()),
+    };
+    match path {
+        Some(p) => {
+            let m = relight_scene::io::load_mesh(&p)?.mesh;
+            Ok(Some((p.display().to_string(), m)))
+        }
+        None => Ok(None),
+    }
+}
+
+/// Run the benchmarks and print a report.
+pub fn run(a: Args) -> Result<()> {
+    let threads = rayon::current_num_threads();
+    let rays = if a.quick { a.rays.min(200_000) } else { a.rays };
+    println!(
+        "# relight bench ({} threads, {})",
+        threads,
+        std::env::consts::ARCH
+    );
+
+    // 1. Ray throughput.
+    let (name, mesh) = match shared_mesh(&a.ray_mesh, "data/meshes/dragon.obj")? {
+        Some(x) => x,
+        None => {
+            eprintln!(
+                "bench: ../shared/data/meshes/dragon.obj not found: using a procedural sphere"
+            );
+            (
+                "procedural sphere".into(),
+                relight_scene::shapes::uv_sphere(glam::Vec3::ZERO, 1.0, 224, 224),
+            )
+        }
+    };
+    println!(
+        "\n## Ray throughput: {} ({} triangles), {} incoherent rays from the surface",
+        name,
+        mesh.triangle_count(),
+        rays
+    );
+    println!("| back-end | query | Mrays/s | ratio to Embree |\n|---|---|---|---|");
+    for r in bench_occlusion(&mesh, rays, 7, threads) {
+        println!(
+            "| {} | {} | {:.2} | {:.2} |",
+            r.backend, r.query, r.mrays_per_s, r.ratio_to_embree
+        );
+    }
+
+    // 2. Bake overhead.
+    let (name, mesh) = match shared_mesh(&a.bake_mesh, "data/meshes/bunny_watertight.obj")? {
+        Some(x) => x,
+        None => {
+            eprintln!(
+                "bench: bunny_watertight.obj not found: using a procedural sphere on a plane"
+            );
+            let mut m =
+                relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
+            m.append(
+                &relight_scene::shapes::ground_plane(glam::Vec3::ZERO, 4.0, 64),
+                0,
+            );
+            ("procedural sphere + plane".into(), m)
+        }
+    };
+    let samples = if a.quick { 128 } else { 1024 };
+    let materials = vec![relight_scene::material::Material::default()];
+    let mut mesh = mesh;
+    mesh.material_ids.iter_mut().for_each(|m| *m = 0);
+    let caster = accel::build_default(&mesh);
+    let settings = ShBakeSettings {
+        order: 4,
+        samples,
+        seed: 1,
+        kind: ShTransferKind::Interreflected { bounces: 1 },
+        threads: None,
+        progress: false,
+    };
+    let t0 = Instant::now();
+    let transfer = relight_bake::sh::bake(&mesh, &materials, caster.as_ref(), &settings)
+        .map_err(|e| anyhow!("bake: {e}"))?;
+    let bake_s = t0.elapsed().as_secs_f64();
+    std::hint::black_box(&transfer);
+    let cast_s = cast_bake_rays(&mesh, caster.as_ref(), samples, 1);
+    let nrays = 2 * mesh.vertex_count() as u64 * samples as u64;
+    println!(
+        "\n## SH bake: {} ({} vertices), order 4, {} samples, shadowed + 1 bounce, {}",
+        name,
+        mesh.vertex_count(),
+        samples,
+        caster.name()
+    );
+    println!(
+        "| bake | same rays, cast only | overhead | rays | bake Mrays/s |\n|---|---|---|---|---|"
+    );
+    println!(
+        "| {:.2} s | {:.2} s | {:.2}x | {} | {:.2} |",
+        bake_s,
+        cast_s,
+        bake_s / cast_s,
+        nrays,
+        nrays as f64 / bake_s / 1e6
+    );
+
+    // 3. Relight vs bandwidth.
+    let verts = if a.quick {
+        a.relight_vertices.min(200_000)
+    } else {
+        a.relight_vertices
+    };
+    let r = relight_render::shade_sh::bench_relight(verts, 5);
+    println!(
+        "\n## SH relight: {} vertices, order 5, single-channel transfer + albedo",
+        verts
+    );
+    println!("| ms/frame | MB/frame | achieved GB/s | STREAM copy GB/s | time over bandwidth bound |\n|---|---|---|---|---|");
+    let achieved = r.bytes_per_frame as f64 / (r.ms_per_frame * 1e-3) / 1e9;
+    println!(
+        "| {:.2} | {:.1} | {:.2} | {:.2} | {:.2}x |",
+        r.ms_per_frame,
+        r.bytes_per_frame as f64 / 1e6,
+        achieved,
+        r.stream_copy_gbps,
+        1.0 / r.ratio_to_bandwidth_bound
+    );
+    Ok(())
+}
+
+/// Cast exactly the rays of a shadowed + `bounces` bake (same directions and origins), doing
+/// nothing with the answers: the pure ray-casting time the bake's overhead is measured against.
+fn cast_bake_rays(mesh: &TriMesh, caster: &dyn RayCaster, samples: u32, bounces: u32) -> f64 {
+    let ng = vertex_geometric_normals(mesh);
+    let t0 = Instant::now();
+    let hits: u64 = (0..mesh.vertex_count())
+        .into_par_iter()
+        .map(|v| {
+            let s = VertexSamples::new(1, v, samples, mesh.normals[v]);
+            let mut count = 0u64;
+            let rays: Vec<_> = (0..samples)
+                .map(|i| surface_ray(mesh.positions[v], ng[v], s.dir(i)))
+                .collect();
+            let mut occ = vec![false; rays.len()];
+            caster.occluded_many(&rays, &mut occ);
+            count += occ.iter().filter(|&&o| o).count() as u64;
+            for _ in 0..bounces {
+                count += rays
+                    .iter()
+                    .filter(|r| caster.intersect(r).is_some())
+                    .count() as u64;
+            }
+            count
+        })
+        .sum();
+    std::hint::black_box(hits);
+    t0.elapsed().as_secs_f64()
+}

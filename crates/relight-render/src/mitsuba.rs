@@ -1,0 +1,284 @@
+//! Mitsuba 3 ground truth: export a [`Scene`] to files Mitsuba reads, and run
+//! `tools/mitsuba_reference.py` on them.
+//!
+//! [`export_mitsuba`] writes into a folder:
+//! * `shape_<m>.ply`: the triangles of material `m` (binary little-endian PLY with vertex
+//!   normals, loaded with `face_normals = false` so Mitsuba interpolates them as we do);
+//! * `env.exr`: the environment as a float latlong in Mitsuba's placement (the map's own
+//!   texels when it is a latlong, else resampled with [`EnvMap::to_latlong`]);
+//! * `scene.json`: camera (`origin`, `target`, `up`, `fov` horizontal in degrees, `width`,
+//!   `height`), `env` (`file`, `scale`, `rotate_y_deg`), `shapes` (`ply` and `bsdf` with
+//!   `type` = `diffuse` | `roughconductor` | `roughplastic` and the plugin's parameter names),
+//!   `spp`, `max_depth`, `hide_emitters`.
+//!
+//! Materials map to Mitsuba plugins as documented on [`Material`]: `Lambert` -> `diffuse`,
+//! `GgxConductor` -> `roughconductor` (ggx, `material = "none"`), `GgxPlastic` ->
+//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong has no Mitsuba counterpart and is refused.
+
+use crate::image::Image;
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_scene::scene::Scene;
+use relight_sphere::envmap::{EnvLayout, EnvMap};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Export `scene` for `tools/mitsuba_reference.py` into `dir` (created if needed); returns
+/// the path of `scene.json`. `max_depth` has Mitsuba's meaning (2 = direct only, -1 =
+/// unlimited).
+pub fn export_mitsuba(
+    scene: &Scene,
+    dir: &Path,
+    spp: u32,
+    max_depth: i32,
+) -> Result<PathBuf, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    scene.camera.validate()?;
+    let mut shapes = Vec::new();
+    for (m, material) in scene.materials.iter().enumerate() {
+        let sub = submesh(&scene.mesh, m as u32);
+        if sub.indices.is_empty() {
+            continue;
+        }
+        material
+            .validate()
+            .map_err(|e| format!("material {m}: {e}"))?;
+        let bsdf = bsdf_json(material).map_err(|e| format!("material {m}: {e}"))?;
+        let name = format!("shape_{m}.ply");
+        relight_scene::io::ply::write_ply(&dir.join(&name), &sub).map_err(|e| e.to_string())?;
+        shapes.push(json!({ "ply": name, "bsdf": bsdf }));
+    }
+    let env = &scene.env;
+    let latlong = latlong_of(&env.map);
+    relight_scene::io::write_exr(
+        &dir.join("env.exr"),
+        latlong.width(),
+        latlong.height(),
+        latlong.texels(),
+    )
+    .map_err(|e| e.to_string())?;
+    let c = &scene.camera;
+    let doc = json!({
+        "camera": {
+            "origin": c.origin, "target": c.target, "up": c.up,
+            "fov": c.fov_deg, "width": c.width, "height": c.height,
+        },
+        "env": { "file": "env.exr", "scale": env.scale, "rotate_y_deg": env.rotate_y_deg },
+        "shapes": shapes,
+        "spp": spp,
+        "max_depth": max_depth,
+        "hide_emitters": false,
+    });
+    let path = dir.join("scene.json");
+    let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
+    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// The Mitsuba BSDF description of a material (see the module docs).
+fn bsdf_json(m: &Material) -> Result<Value, String> {
+    Ok(match *m {
+        Material::Lambert { albedo } => {
+            json!({ "type": "diffuse", "reflectance": albedo.to_array() })
+        }
+        Material::GgxConductor { specular, alpha } => json!({
+            "type": "roughconductor", "alpha": alpha, "specular_reflectance": specular.to_array(),
+        }),
+        Material::GgxPlastic {
+            diffuse,
+            specular,
+            alpha,
+            ior,
+        } => json!({
+            "type": "roughplastic", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0,
+            "diffuse_reflectance": diffuse.to_array(), "specular_reflectance": specular.to_array(),
+        }),
+        Material::BlinnPhong { .. } => return Err("Mitsuba 3 has no Blinn-Phong BSDF".into()),
+    })
+}
+
+/// The triangles of material `m` with their vertices, compacted, material id 0.
+fn submesh(mesh: &TriMesh, m: u32) -> TriMesh {
+    let mut remap = vec![u32::MAX; mesh.positions.len()];
+    let mut out = TriMesh::default();
+    let mut uvs = Vec::new();
+    for (t, tri) in mesh.indices.iter().enumerate() {
+        if mesh.material_ids.get(t) != Some(&m) {
+            continue;
+        }
+        let idx = tri.map(|v| {
+            let v = v as usize;
+            if remap[v] == u32::MAX {
+                remap[v] = out.positions.len() as u32;
+                out.positions.push(mesh.positions[v]);
+                out.normals.push(mesh.normals[v]);
+                if let Some(u) = &mesh.uvs {
+                    uvs.push(u[v]);
+                }
+            }
+            remap[v]
+        });
+        out.indices.push(idx);
+        out.material_ids.push(0);
+    }
+    if mesh.uvs.is_some() {
+        out.uvs = Some(uvs);
+    }
+    out
+}
+
+/// The map as a latlong: itself, or resampled (cube `n`: `4n x 2n+1`; probe `n`: `2n x n+1`).
+fn latlong_of(map: &EnvMap) -> EnvMap {
+    match map.layout() {
+        EnvLayout::LatLong => map.clone(),
+        EnvLayout::Cube => map.to_latlong(4 * map.width(), 2 * map.width() + 1),
+        EnvLayout::Probe => map.to_latlong(2 * map.width(), map.width() + 1),
+    }
+}
+
+/// Path of `tools/mitsuba_reference.py` in this repository.
+pub fn reference_script() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tools/mitsuba_reference.py")
+}
+
+/// The Python that runs Mitsuba: `$RELIGHT_MITSUBA_PYTHON`, else
+/// `/root/.cache/relight/venv/bin/python`, if it can `import mitsuba`; `Err` says why not.
+pub fn mitsuba_python() -> Result<PathBuf, String> {
+    let py = std::env::var_os("RELIGHT_MITSUBA_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/root/.cache/relight/venv/bin/python"));
+    let out = Command::new(&py)
+        .args(["-c", "import mitsuba"])
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", py.display()))?;
+    if !out.status.success() {
+        return Err(format!(
+            "{} cannot import mitsuba: {}",
+            py.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ));
+    }
+    Ok(py)
+}
+
+/// Render an exported `scene.json` with Mitsuba through `tools/mitsuba_reference.py`, once
+/// per sampler seed in `seeds` (one Python process), and load the images. `out_stem` names
+/// the files (`<out_stem>_s<seed>.exr`); `spp` overrides the file's when `Some`. Returns the
+/// images (in `seeds` order) and the script's report line (variant, time).
+pub fn render_mitsuba(
+    python: &Path,
+    scene_json: &Path,
+    out_stem: &Path,
+    seeds: &[u32],
+    spp: Option<u32>,
+) -> Result<(Vec<Image>, String), String> {
+    if seeds.is_empty() {
+        return Ok((Vec::new(), String::new()));
+    }
+    let list: Vec<String> = seeds.iter().map(|s| s.to_string()).collect();
+    let out_exr = out_stem.with_extension("exr");
+    let mut cmd = Command::new(python);
+    cmd.arg(reference_script())
+        .arg(scene_json)
+        .arg(&out_exr)
+        .args(["--seeds", &list.join(",")]);
+    if let Some(s) = spp {
+        cmd.args(["--spp", &s.to_string()]);
+    }
+    let out = cmd
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", python.display()))?;
+    let stdout = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    if !out.status.success() {
+        return Err(format!(
+            "mitsuba_reference.py failed: {stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    let mut images = Vec::new();
+    for s in seeds {
+        let stem = out_stem
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let path = out_stem.with_file_name(format!("{stem}_s{s}.exr"));
+        let (w, h, px) = relight_scene::io::image::read_exr(&path).map_err(|e| e.to_string())?;
+        images.push(Image {
+            width: w,
+            height: h,
+            pixels: px,
+        });
+    }
+    Ok((images, stdout))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relight_scene::camera::Camera;
+    use relight_scene::scene::Environment;
+    use relight_scene::shapes::{ground_plane, uv_sphere};
+    use relight_scene::Vec3;
+
+    #[test]
+    fn export_writes_one_ply_per_used_material_and_a_complete_json() {
+        let mut mesh = uv_sphere(Vec3::Y, 1.0, 8, 16);
+        let ground = ground_plane(Vec3::ZERO, 6.0, 2);
+        mesh.append(&ground, 2);
+        let scene = Scene {
+            mesh,
+            materials: vec![
+                Material::Lambert {
+                    albedo: Vec3::splat(0.5),
+                },
+                Material::BlinnPhong {
+                    diffuse: Vec3::ZERO,
+                    specular: Vec3::ONE,
+                    exponent: 9.0,
+                }, // unused
+                Material::GgxPlastic {
+                    diffuse: Vec3::splat(0.3),
+                    specular: Vec3::ONE,
+                    alpha: 0.2,
+                    ior: 1.5,
+                },
+            ],
+            env: Environment {
+                rotate_y_deg: 30.0,
+                scale: 2.0,
+                ..Environment::new(EnvMap::constant(Vec3::ONE))
+            },
+            camera: Camera {
+                origin: [0.0, 1.0, 5.0],
+                target: [0.0, 1.0, 0.0],
+                up: [0.0, 1.0, 0.0],
+                fov_deg: 40.0,
+                width: 8,
+                height: 6,
+            },
+        };
+        let dir =
+            std::env::temp_dir().join(format!("relight-mitsuba-export-{}", std::process::id()));
+        let json_path = export_mitsuba(&scene, &dir, 16, 3).unwrap();
+        let doc: Value =
+            serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+        let shapes = doc["shapes"].as_array().unwrap();
+        assert_eq!(shapes.len(), 2);
+        assert_eq!(shapes[0]["bsdf"]["type"], "diffuse");
+        assert_eq!(shapes[1]["bsdf"]["type"], "roughplastic");
+        assert_eq!(shapes[1]["bsdf"]["ext_ior"], 1.0);
+        assert_eq!(doc["env"]["rotate_y_deg"], 30.0);
+        assert_eq!(doc["max_depth"], 3);
+        assert!(dir.join("shape_0.ply").is_file() && dir.join("shape_2.ply").is_file());
+        assert!(!dir.join("shape_1.ply").exists());
+        let (w, h, px) = relight_scene::io::image::read_exr(&dir.join("env.exr")).unwrap();
+        assert_eq!((w, h), (scene.env.map.width(), scene.env.map.height()));
+        assert!(px.iter().all(|p| *p == Vec3::ONE));
+        // Blinn-Phong in use is refused.
+        let mut bp = scene.clone();
+        bp.mesh.material_ids.iter_mut().for_each(|m| *m = 1);
+        assert!(export_mitsuba(&bp, &dir, 16, 3).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,309 @@
+//! Ray-casting throughput of every back-end on one shared ray set (for `relight bench`).
+//!
+//! The rays are those of ambient occlusion / transfer baking: origins uniform by area on the
+//! mesh surface, offset with [`offset_ray_origin`], directions cosine-distributed about the
+//! geometric normal, `tmin = 0`, `tmax = inf`. Each back-end traces the same rays on a rayon
+//! pool of the requested size, in chunks through `occluded_many` / `intersect_many`; the best
+//! of [`REPEATS`] interleaved timed passes (after a warm-up round) is reported, which is the
+//! most robust figure on a machine shared with other jobs.
+
+use super::{build, offset_ray_origin, Backend, Hit, Ray, RayCaster};
+use crate::mesh::TriMesh;
+use crate::Vec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Timed rounds (every back-end and query once per round); the fastest pass counts.
+pub const REPEATS: usize = 5;
+/// Rays per `occluded_many` / `intersect_many` call (one rayon task).
+const CHUNK: usize = 256;
+
+/// One measured throughput.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchRow {
+    /// Back-end name ([`RayCaster::name`]).
+    pub backend: &'static str,
+    /// `"occluded"` or `"intersect"`.
+    pub query: &'static str,
+    /// Millions of rays per second (wall clock, all threads).
+    pub mrays_per_s: f64,
+    /// `mrays_per_s` over Embree's for the same query (1 for Embree; NaN without Embree).
+    pub ratio_to_embree: f64,
+}
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny deterministic generator for ray sets.
+#[derive(Clone, Debug)]
+pub(crate) struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub(crate) fn next_f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+}
+
+/// Orthonormal basis `(t, b)` around unit `n` (Duff et al. 2017, "Building an orthonormal
+/// basis, revisited").
+fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let s = 1f32.copysign(n.z);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + s * n.x * n.x * a, s * b, -s * n.x),
+        Vec3::new(b, s + n.y * n.y * a, -n.y),
+    )
+}
+
+/// `count` incoherent rays leaving the surface of `mesh` (see the module docs).
+///
+/// # Panics
+/// If the mesh has no triangle of positive area.
+pub fn surface_rays(mesh: &TriMesh, count: usize, seed: u64) -> Vec<Ray> {
+    // Area CDF over triangles.
+    let mut cdf = Vec::with_capacity(mesh.triangle_count());
+    let mut total = 0f64;
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t);
+        let area = 0.5 * (b - a).cross(c - a).length() as f64;
+        total += if area.is_finite() { area } else { 0.0 };
+        cdf.push(total);
+    }
+    assert!(total > 0.0, "surface_rays: mesh has no area");
+    let mut rng = SplitMix64(seed);
+    (0..count)
+        .map(|_| {
+            let x = rng.next_u64() as f64 / u64::MAX as f64 * total;
+            let tri = cdf.partition_point(|&c| c <= x).min(cdf.len() - 1);
+            // Skip zero-area triangles the search can land on only at x == 0.
+            let tri = (tri..cdf.len())
+                .find(|&t| mesh.geometric_normal(t) != Vec3::ZERO)
+                .unwrap_or(0);
+            let (mut u, mut v) = (rng.next_f32(), rng.next_f32());
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let p = mesh.point(tri, u, v);
+            let n = mesh.geometric_normal(tri);
+            // Cosine-weighted direction about n (Malley's method).
+            let (r2, phi) = (rng.next_f32(), std::f32::consts::TAU * rng.next_f32());
+            let r = r2.sqrt();
+            let (t, b) = basis(n);
+            let dir = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - r2).max(0.0).sqrt())
+                .normalize();
+            Ray::new(offset_ray_origin(p, n, dir), dir, 0.0, f32::INFINITY)
+        })
+        .collect()
+}
+
+/// Seconds for one parallel pass of `f` over `rays` in chunks on `pool`.
+fn time_pass(pool: &rayon::ThreadPool, rays: &[Ray], f: &(dyn Fn(&[Ray]) + Sync)) -> f64 {
+    let t0 = Instant::now();
+    pool.install(|| rays.par_chunks(CHUNK).for_each(f));
+    t0.elapsed().as_secs_f64()
+}
+
+/// Occlusion and closest-hit throughput of every available back-end on the same `rays`
+/// surface rays of `mesh` (seeded by `seed`) with `threads` worker threads.
+///
+/// Passes are interleaved (every back-end and query once per round, [`REPEATS`] rounds after a
+/// warm-up round) and the fastest pass counts, so load from other processes hits all
+/// back-ends alike. Back-ends that fail to build (reported on stderr) are left out.
+///
+/// # Panics
+/// If `rays == 0`, `threads == 0`, the thread pool cannot start, or the mesh has no area.
+pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -> Vec<BenchRow> {
+    assert!(
+        rays > 0 && threads > 0,
+        "bench_occlusion: need rays > 0 and threads > 0"
+    );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("bench_occlusion: cannot start thread pool");
+    let ray_set = surface_rays(mesh, rays, seed);
+    let casters: Vec<Box<dyn RayCaster>> = Backend::available()
+        .iter()
+        .filter_map(|&b| {
+            build(mesh, b)
+                .map_err(|e| eprintln!("bench: {b:?} skipped: {e}"))
+                .ok()
+        })
+        .collect();
+    let occluded = |c: &dyn RayCaster, rs: &[Ray]| {
+        let mut out = [false; CHUNK];
+        c.occluded_many(rs, &mut out[..rs.len()]);
+        std::hint::black_box(&out);
+    };
+    let intersect = |c: &dyn RayCaster, rs: &[Ray]| {
+        let mut out = [None::<Hit>; CHUNK];
+        c.intersect_many(rs, &mut out[..rs.len()]);
+        std::hint::black_box(&out);
+    };
+    let queries: [(&'static str, &(dyn Fn(&dyn RayCaster, &[Ray]) + Sync)); 2] =
+        [("occluded", &occluded), ("intersect", &intersect)];
+    // best[caster][query] = shortest pass in seconds.
+    let mut best = vec![[f64::INFINITY; 2]; casters.len()];
+    for round in 0..=REPEATS {
+        for (c, b) in casters.iter().zip(&mut best) {
+            for (q, (_, f)) in queries.iter().enumerate() {
+                let s = time_pass(&pool, &ray_set, &|rs| f(&**c, rs));
+                if round > 0 {
+                    b[q] = b[q].min(s);
+                }
+            }
+        }
+    }
+    let mut rows = Vec::new();
+    for (c, b) in casters.iter().zip(&best) {
+        for (q, (query, _)) in queries.iter().enumerate() {
+            let mrays_per_s = rays as f64 / b[q] / 1e6;
+            rows.push(BenchRow {
+                backend: c.name(),
+                query,
+                mrays_per_s,
+                ratio_to_embree: f64::NAN,
+            });
+        }
+    }
+    // Ratios against Embree's row for the same query.
+    let embree: Vec<(&'static str, f64)> = rows
+        .iter()
+        .filter(|r| r.backend == "embree3")
+        .map(|r| (r.query, r.mrays_per_s))
+        .collect();
+    for r in &mut rows {
+        if let Some(&(_, e)) = embree.iter().find(|(q, _)| *q == r.query) {
+            r.ratio_to_embree = r.mrays_per_s / e;
+        }
+    }
+    rows
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// Minimal OBJ reader for tests and the benchmark (positions and faces only; polygons
+    /// fanned). The real importer lives in `crate::io`.
+    pub(crate) fn read_obj_positions(path: &std::path::Path) -> TriMesh {
+        let text = std::fs::read_to_string(path).expect("read OBJ");
+        let mut m = TriMesh::default();
+        for line in text.lines() {
+            let mut it = line.split_whitespace();
+            match it.next() {
+                Some("v") => {
+                    let c: Vec<f32> = it.take(3).map(|x| x.parse().expect("vertex")).collect();
+                    m.positions.push(Vec3::new(c[0], c[1], c[2]));
+                }
+                Some("f") => {
+                    let n = m.positions.len() as i64;
+                    let idx: Vec<u32> = it
+                        .map(|w| {
+                            let i: i64 = w.split('/').next().unwrap().parse().expect("face index");
+                            (if i < 0 { n + i } else { i - 1 }) as u32
+                        })
+                        .collect();
+                    for k in 1..idx.len() - 1 {
+                        m.indices.push([idx[0], idx[k], idx[k + 1]]);
+                    }
+                }
+                _ => {}
+            }
+        }
+        m.normals = vec![Vec3::Y; m.positions.len()];
+        m.material_ids = vec![0; m.indices.len()];
+        m
+    }
+
+    #[test]
+    fn surface_rays_leave_the_surface() {
+        // A unit square in the XZ plane facing +Y: every ray must point up, start on it.
+        let m = TriMesh {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::X,
+            ],
+            normals: vec![Vec3::Y; 4],
+            uvs: None,
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            material_ids: vec![0, 0],
+        };
+        let rays = surface_rays(&m, 2000, 7);
+        let mut mean_cos = 0.0;
+        for r in &rays {
+            assert!(
+                r.dir.y > 0.0 && r.origin.y > 0.0 && r.origin.y < 1e-3,
+                "{r:?}"
+            );
+            assert!((0.0..=1.0).contains(&r.origin.x) && (0.0..=1.0).contains(&r.origin.z));
+            mean_cos += r.dir.y / rays.len() as f32;
+        }
+        // Cosine-weighted: E[cos] = 2/3; 2000 samples give a std error of ~0.005.
+        assert!((mean_cos - 2.0 / 3.0).abs() < 0.02, "mean cos {mean_cos}");
+    }
+
+    #[test]
+    fn bench_runs_on_a_small_mesh() {
+        let m = crate::accel::bvh::tests::sphere(8, 16);
+        let rows = bench_occlusion(&m, 2000, 1, 2);
+        assert_eq!(rows.len(), 2 * Backend::available().len());
+        assert!(rows.iter().all(|r| r.mrays_per_s > 0.0), "{rows:?}");
+    }
+
+    /// `cargo test --release -p relight-scene bench_dragon -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn bench_dragon() {
+        let Some(p) = crate::testdata::shared_file("data/meshes/dragon.obj") else {
+            return;
+        };
+        let m = read_obj_positions(&p);
+        for &b in Backend::available() {
+            let t0 = Instant::now();
+            let c = build(&m, b).unwrap();
+            eprintln!(
+                "build {:>13}: {:.1} ms",
+                c.name(),
+                t0.elapsed().as_secs_f64() * 1e3
+            );
+        }
+        let rays = 1 << 20;
+        // Agreement of the back-ends on this ray set.
+        let set = surface_rays(&m, rays, 1);
+        let answers: Vec<Vec<bool>> = Backend::available()
+            .iter()
+            .map(|&b| {
+                let c = build(&m, b).unwrap();
+                let mut o = vec![false; set.len()];
+                c.occluded_many(&set, &mut o);
+                o
+            })
+            .collect();
+        if answers.len() == 2 {
+            let diff = answers[0]
+                .iter()
+                .zip(&answers[1])
+                .filter(|(a, b)| a != b)
+                .count();
+            let occ = answers[0].iter().filter(|&&a| a).count();
+            eprintln!("occluded: {occ} of {rays}; back-ends disagree on {diff}");
+        }
+        eprintln!("{} triangles, {rays} rays, 2 threads", m.triangle_count());
+        for r in bench_occlusion(&m, rays, 1, 2) {
+            eprintln!(
+                "{:>13} {:>9}: {:6.2} Mrays/s  ratio to Embree {:.2}",
+                r.backend, r.query, r.mrays_per_s, r.ratio_to_embree
+            );
+        }
+    }
+}
