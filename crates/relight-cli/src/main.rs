@@ -8,6 +8,7 @@ mod bench;
 mod common;
 mod compare;
 mod demo;
+mod eval;
 mod info;
 mod reference;
 mod render;
@@ -38,6 +39,8 @@ enum Cmd {
     Reference(reference::Args),
     /// Export a scene for Mitsuba 3 (see tools/mitsuba_reference.py).
     ExportMitsuba(reference::ExportArgs),
+    /// Evaluate a method against Mitsuba 3 ground truth (error per SH order).
+    Eval(eval::Args),
     /// Compare two images (EXR/HDR): RMSE, relative RMSE, PSNR, luminance error, heat map.
     Compare(compare::Args),
     /// Describe a baked bundle.
@@ -64,6 +67,7 @@ fn main() {
         Cmd::Render(a) => render::run(a),
         Cmd::Reference(a) => reference::run(a),
         Cmd::ExportMitsuba(a) => reference::export(a),
+        Cmd::Eval(a) => eval::run(a),
         Cmd::Compare(a) => compare::run(a),
         Cmd::Info(a) => info::run(a),
         Cmd::Project(a) => info::project(a),

@@ -262,7 +262,8 @@ impl Ctx<'_> {
 
             // Russian roulette (Mitsuba's rule and default depth).
             let tmax = throughput.max_element();
-            if !(tmax > 0.0) {
+            // Zero or NaN throughput ends the path.
+            if tmax.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 break;
             }
             if depth >= RR_DEPTH {

@@ -528,4 +528,44 @@ mod tests {
             assert!((p.x - c).abs() < 1e-6);
         }
     }
+
+    #[test]
+    fn end_to_end_bake_shade_render_under_a_constant_environment() {
+        // Unshadowed transfer of a sphere under radiance 1 everywhere gives L_o = albedo at
+        // every vertex; the background shows the environment itself.
+        use relight_bake::sh::{bake, ShBakeSettings, ShTransferKind};
+        use relight_scene::material::Material;
+        use relight_sphere::envmap::EnvMap;
+        let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 2.0, 16, 32);
+        let caster = relight_scene::accel::build_default(&mesh);
+        let settings = ShBakeSettings {
+            order: 3,
+            kind: ShTransferKind::Unshadowed,
+            ..Default::default()
+        };
+        let albedo = Vec3::new(0.2, 0.5, 0.8);
+        let t = bake(
+            &mesh,
+            &[Material::Lambert { albedo }],
+            caster.as_ref(),
+            &settings,
+        )
+        .unwrap();
+        let map = EnvMap::constant(Vec3::ONE);
+        let light = relight_sphere::sh::project_env(&map, 3);
+        let rad = crate::shade_sh::shade(&t, Some(&vec![albedo; mesh.vertex_count()]), &light);
+        let env = Environment::new(map);
+        let img = render(&mesh, &cam(), &rad, Some(&env));
+        // 1e-3: the SH projection of the constant map is a quadrature over its texels.
+        assert!(
+            (img.get(32, 32) - albedo).abs().max_element() < 1e-3,
+            "{}",
+            img.get(32, 32)
+        );
+        assert!(
+            (img.get(1, 1) - Vec3::ONE).abs().max_element() < 1e-3,
+            "{}",
+            img.get(1, 1)
+        );
+    }
 }

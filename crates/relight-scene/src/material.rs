@@ -284,7 +284,8 @@ impl Material {
             return None;
         }
         let pdf = self.pdf(wi, wo);
-        if !(pdf > 0.0) {
+        // Also rejects NaN.
+        if pdf.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         Some(BsdfSample {
@@ -683,14 +684,14 @@ mod tests {
         }
         let mut exp = [0.0f64; NC];
         let (nz, np) = (200, 400);
-        for c in 0..NC {
+        for (c, e) in exp.iter_mut().enumerate() {
             for i in 0..nz {
                 let cz = (c as f64 + (i as f64 + 0.5) / nz as f64) / NC as f64;
                 for j in 0..np {
                     let ph = (j as f64 + 0.5) / np as f64 * 2.0 * std::f64::consts::PI;
                     let sz = (1.0 - cz * cz).sqrt();
                     let wo = Vec3::new((sz * ph.cos()) as f32, (sz * ph.sin()) as f32, cz as f32);
-                    exp[c] += b.pdf(wi, wo) as f64 / (nz * np) as f64 / NC as f64
+                    *e += b.pdf(wi, wo) as f64 / (nz * np) as f64 / NC as f64
                         * 2.0
                         * std::f64::consts::PI
                         * n as f64;
@@ -698,9 +699,9 @@ mod tests {
             }
         }
         let (mut chi2, mut dof) = (0.0, 0);
-        for c in 0..NC {
-            if exp[c] >= 5.0 {
-                chi2 += (obs[c] - exp[c]).powi(2) / exp[c];
+        for (e, o) in exp.iter().zip(&obs) {
+            if *e >= 5.0 {
+                chi2 += (o - e).powi(2) / e;
                 dof += 1;
             }
         }

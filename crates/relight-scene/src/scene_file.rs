@@ -164,19 +164,24 @@ impl SceneDesc {
         Ok(d)
     }
 
-    /// Make relative file paths relative to `dir`.
+    /// Make relative file paths relative to `dir`, and absolute when the file exists (so a
+    /// bundle remembers where its environment came from whatever the working folder).
     pub fn resolve_paths(&mut self, dir: &Path) {
+        let resolve = |p: &mut PathBuf| {
+            if p.is_relative() {
+                *p = dir.join(&*p);
+            }
+            if let Ok(abs) = p.canonicalize() {
+                *p = abs;
+            }
+        };
         for s in &mut self.shapes {
             if let ShapeDesc::Mesh { file, .. } = s {
-                if file.is_relative() {
-                    *file = dir.join(&*file);
-                }
+                resolve(file);
             }
         }
         if let EnvDesc::File { path, .. } = &mut self.environment {
-            if path.is_relative() {
-                *path = dir.join(&*path);
-            }
+            resolve(path);
         }
     }
 

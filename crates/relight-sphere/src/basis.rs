@@ -23,7 +23,8 @@ pub trait SphericalBasis {
     /// product with each basis function).
     fn is_orthonormal(&self) -> bool;
 
-    /// Reconstruction `sum_i c_i B_i(dir)`.
+    /// Reconstruction `sum_i c_i B_i(dir)` (the default allocates a scratch buffer per call;
+    /// implementations override it when they can do better).
     ///
     /// # Panics
     /// Debug builds assert `coeffs.len() == coeff_count()`.
@@ -95,6 +96,11 @@ impl SphericalBasis for ShBasis {
 
     fn is_orthonormal(&self) -> bool {
         true
+    }
+
+    fn eval_rgb(&self, coeffs: &[Vec3], dir: Vec3) -> Vec3 {
+        debug_assert_eq!(coeffs.len(), self.coeff_count());
+        crate::sh::eval_rgb(coeffs, dir)
     }
 }
 

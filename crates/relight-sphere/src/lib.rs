@@ -23,14 +23,14 @@
 //!   `0..n-1`, i.e. `n^2` coefficients.
 //! * **Cube maps**: faces in the order +X, -X, +Y, -Y, +Z, -Z with the OpenGL face orientation
 //!   (see [`cubemap`]).
-
 //!
 //! ## Modules
 //! * [`envmap`]: environment maps (latlong, cube, probe), bilinear lookup, exact quadrature
 //!   weights, [`EnvSampler`] importance sampling ([`env_sampler`]);
 //!   grids: [`latlong`], [`cubemap`], [`probe`], [`icosphere`];
 //! * [`sh`]: real SH evaluation, projection, zonal convolution, windows; [`sh_rotate`]:
-//!   rotation of any order; [`sh_product`]: triple-product tensor; [`basis`]: the [`basis::SphericalBasis`] trait;
+//!   rotation of any order; [`sh_product`]: triple-product tensor; [`basis`]: the
+//!   [`basis::SphericalBasis`] trait;
 //! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
 //!
 //! ## Example

@@ -3,9 +3,9 @@
 //! The rays are those of ambient occlusion / transfer baking: origins uniform by area on the
 //! mesh surface, offset with [`offset_ray_origin`], directions cosine-distributed about the
 //! geometric normal, `tmin = 0`, `tmax = inf`. Each back-end traces the same rays on a rayon
-//! pool of the requested size, in chunks through `occluded_many` / `intersect_many`; the best
-//! of [`REPEATS`] interleaved timed passes (after a warm-up round) is reported, which is the
-//! most robust figure on a machine shared with other jobs.
+//! pool of the requested size, in chunks through `occluded_many` / `intersect_many`. Timing
+//! is interleaved and best-of-[`REPEATS`] per short segment of rays (see [`bench_occlusion`]),
+//! the most robust figure on a machine shared with other jobs.
 
 use super::{build, offset_ray_origin, Backend, Hit, Ray, RayCaster};
 use crate::mesh::TriMesh;
@@ -13,8 +13,11 @@ use crate::Vec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
-/// Timed rounds (every back-end and query once per round); the fastest pass counts.
+/// Timed rounds (every segment, back-end and query once per round); the fastest pass counts.
 pub const REPEATS: usize = 5;
+/// Rays per timed pass: short passes, each the best of [`REPEATS`], filter out bursts of load
+/// from other processes better than long ones.
+const SEGMENT: usize = 1 << 17;
 /// Rays per `occluded_many` / `intersect_many` call (one rayon task).
 const CHUNK: usize = 256;
 
@@ -103,6 +106,9 @@ pub fn surface_rays(mesh: &TriMesh, count: usize, seed: u64) -> Vec<Ray> {
         .collect()
 }
 
+/// One timed query over a chunk of rays.
+type Query = dyn Fn(&dyn RayCaster, &[Ray]) + Sync;
+
 /// Seconds for one parallel pass of `f` over `rays` in chunks on `pool`.
 fn time_pass(pool: &rayon::ThreadPool, rays: &[Ray], f: &(dyn Fn(&[Ray]) + Sync)) -> f64 {
     let t0 = Instant::now();
@@ -110,12 +116,15 @@ fn time_pass(pool: &rayon::ThreadPool, rays: &[Ray], f: &(dyn Fn(&[Ray]) + Sync)
     t0.elapsed().as_secs_f64()
 }
 
-/// Occlusion and closest-hit throughput of every available back-end on the same `rays`
-/// surface rays of `mesh` (seeded by `seed`) with `threads` worker threads.
+/// Occlusion and closest-hit throughput of every available back-end (plus Embree's robust,
+/// watertight mode, backend `"embree3-robust"`) on the same `rays` surface rays of `mesh`
+/// (seeded by `seed`) with `threads` worker threads. Ratios are against `"embree3"` (Embree's
+/// default, fast mode).
 ///
-/// Passes are interleaved (every back-end and query once per round, [`REPEATS`] rounds after a
-/// warm-up round) and the fastest pass counts, so load from other processes hits all
-/// back-ends alike. Back-ends that fail to build (reported on stderr) are left out.
+/// The rays are cut into segments of `SEGMENT` rays; every segment is traced by every back-end
+/// and query once per round ([`REPEATS`] rounds after a warm-up round), and the time of a
+/// back-end is the sum over segments of its fastest pass, so bursts of load from other
+/// processes hit all back-ends alike and are filtered out. Back-ends that fail to build (reported on stderr) are left out.
 ///
 /// # Panics
 /// If `rays == 0`, `threads == 0`, the thread pool cannot start, or the mesh has no area.
@@ -129,7 +138,8 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
         .build()
         .expect("bench_occlusion: cannot start thread pool");
     let ray_set = surface_rays(mesh, rays, seed);
-    let casters: Vec<Box<dyn RayCaster>> = Backend::available()
+    #[allow(unused_mut)]
+    let mut casters: Vec<Box<dyn RayCaster>> = Backend::available()
         .iter()
         .filter_map(|&b| {
             build(mesh, b)
@@ -137,6 +147,12 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
                 .ok()
         })
         .collect();
+    // Embree's watertight mode too: the like-for-like comparison for relight's watertight BVH.
+    #[cfg(feature = "embree")]
+    match super::embree::EmbreeScene::build_robust(mesh) {
+        Ok(e) => casters.push(Box::new(e)),
+        Err(e) => eprintln!("bench: embree robust skipped: {e}"),
+    }
     let occluded = |c: &dyn RayCaster, rs: &[Ray]| {
         let mut out = [false; CHUNK];
         c.occluded_many(rs, &mut out[..rs.len()]);
@@ -147,16 +163,24 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
         c.intersect_many(rs, &mut out[..rs.len()]);
         std::hint::black_box(&out);
     };
-    let queries: [(&'static str, &(dyn Fn(&dyn RayCaster, &[Ray]) + Sync)); 2] =
-        [("occluded", &occluded), ("intersect", &intersect)];
-    // best[caster][query] = shortest pass in seconds.
-    let mut best = vec![[f64::INFINITY; 2]; casters.len()];
+    let queries: [(&'static str, &Query); 2] = [("occluded", &occluded), ("intersect", &intersect)];
+    // best[caster][query][segment] = shortest pass over that segment of the rays, in seconds.
+    let segments: Vec<&[Ray]> = ray_set.chunks(SEGMENT).collect();
+    let mut best = vec![
+        [
+            vec![f64::INFINITY; segments.len()],
+            vec![f64::INFINITY; segments.len()]
+        ];
+        casters.len()
+    ];
     for round in 0..=REPEATS {
-        for (c, b) in casters.iter().zip(&mut best) {
-            for (q, (_, f)) in queries.iter().enumerate() {
-                let s = time_pass(&pool, &ray_set, &|rs| f(&**c, rs));
-                if round > 0 {
-                    b[q] = b[q].min(s);
+        for (si, seg) in segments.iter().enumerate() {
+            for (c, b) in casters.iter().zip(&mut best) {
+                for (q, (_, f)) in queries.iter().enumerate() {
+                    let s = time_pass(&pool, seg, &|rs| f(&**c, rs));
+                    if round > 0 {
+                        b[q][si] = b[q][si].min(s);
+                    }
                 }
             }
         }
@@ -164,7 +188,7 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
     let mut rows = Vec::new();
     for (c, b) in casters.iter().zip(&best) {
         for (q, (query, _)) in queries.iter().enumerate() {
-            let mrays_per_s = rays as f64 / b[q] / 1e6;
+            let mrays_per_s = rays as f64 / b[q].iter().sum::<f64>() / 1e6;
             rows.push(BenchRow {
                 backend: c.name(),
                 query,
@@ -256,7 +280,8 @@ pub(crate) mod tests {
     fn bench_runs_on_a_small_mesh() {
         let m = crate::accel::bvh::tests::sphere(8, 16);
         let rows = bench_occlusion(&m, 2000, 1, 2);
-        assert_eq!(rows.len(), 2 * Backend::available().len());
+        let backends = Backend::available().len() + cfg!(feature = "embree") as usize;
+        assert_eq!(rows.len(), 2 * backends);
         assert!(rows.iter().all(|r| r.mrays_per_s > 0.0), "{rows:?}");
     }
 

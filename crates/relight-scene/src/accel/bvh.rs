@@ -300,7 +300,7 @@ impl BuildCtx<'_> {
 /// `hi = -inf`), which no ray hits.
 #[repr(C, align(64))]
 #[derive(Clone, Debug)]
-pub struct Node8 {
+struct Node8 {
     lo: [[f32; 8]; 3],
     hi: [[f32; 8]; 3],
     child: [u32; 8],
@@ -310,7 +310,7 @@ pub struct Node8 {
 /// hit) and `prim = u32::MAX`.
 #[repr(C, align(16))]
 #[derive(Clone, Debug)]
-pub struct TriPack {
+struct TriPack {
     v: [[[f32; 4]; 3]; 3],
     prim: [u32; 4],
 }
@@ -763,18 +763,30 @@ impl RayPre {
     }
 }
 
+/// Compare-exchange pairs of local variables: `cas!(a b, c d)` puts the smaller first.
+macro_rules! cas {
+    ($($a:ident $b:ident),*) => {$(
+        let (x, y) = ($a, $b);
+        $a = x.min(y);
+        $b = x.max(y);
+    )*};
+}
+
+/// Sort the first 4 of 8 keys ascending (5-comparator network).
+#[inline(always)]
+fn sort4(k: &mut [u64; 8]) {
+    let [mut k0, mut k1, mut k2, mut k3, ..] = *k;
+    cas!(k0 k1, k2 k3);
+    cas!(k0 k2, k1 k3);
+    cas!(k1 k2);
+    k[..4].copy_from_slice(&[k0, k1, k2, k3]);
+}
+
 /// Sort 8 keys ascending with Knuth's 19-comparator network (branch-free min/max, so no
 /// mispredictions on random ray data).
 #[inline(always)]
 fn sort8(k: &mut [u64; 8]) {
     let [mut k0, mut k1, mut k2, mut k3, mut k4, mut k5, mut k6, mut k7] = *k;
-    macro_rules! cas {
-        ($($a:ident $b:ident),*) => {$(
-            let (x, y) = ($a, $b);
-            $a = x.min(y);
-            $b = x.max(y);
-        )*};
-    }
     cas!(k0 k2, k1 k3, k4 k6, k5 k7);
     cas!(k0 k4, k1 k5, k2 k6, k3 k7);
     cas!(k0 k1, k2 k3, k4 k5, k6 k7);
@@ -901,13 +913,28 @@ impl Bvh {
                     // Sort the hit children by entry distance (keys `dist bits << 32 | code`;
                     // distances are >= 0, so their bits order like the floats), descend into
                     // the nearest and stack the others nearest-on-top.
+                    let key = |i: usize| ((tn[i].to_bits() as u64) << 32) | node.child[i] as u64;
+                    let count = mask.count_ones() as usize;
                     let mut keys = [u64::MAX; 8];
-                    for (i, k) in keys.iter_mut().enumerate() {
-                        let key = ((tn[i].to_bits() as u64) << 32) | node.child[i] as u64;
-                        *k = if mask & (1 << i) != 0 { key } else { u64::MAX };
+                    if count <= 4 {
+                        // Three or four children: compact and sort with a 5-comparator network.
+                        let mut m = mask;
+                        for k in keys.iter_mut().take(count) {
+                            *k = key(m.trailing_zeros() as usize);
+                            m &= m - 1;
+                        }
+                        sort4(&mut keys);
+                    } else {
+                        for (i, k) in keys.iter_mut().enumerate() {
+                            *k = if mask & (1 << i) != 0 {
+                                key(i)
+                            } else {
+                                u64::MAX
+                            };
+                        }
+                        sort8(&mut keys);
                     }
-                    sort8(&mut keys);
-                    for &k in keys[1..mask.count_ones() as usize].iter().rev() {
+                    for &k in keys[1..count].iter().rev() {
                         self.prefetch(k as u32);
                         stack!(push st, sp, (k as u32, f32::from_bits((k >> 32) as u32)));
                     }
@@ -1401,6 +1428,18 @@ pub(crate) mod tests {
             }
             sort8(&mut k);
             assert!(k.windows(2).all(|w| w[0] <= w[1]), "{bits:08b} -> {k:?}");
+        }
+    }
+
+    #[test]
+    fn sort4_sorts_every_zero_one_input() {
+        for bits in 0u32..16 {
+            let mut k = [9u64; 8];
+            for (i, x) in k.iter_mut().take(4).enumerate() {
+                *x = (bits >> i & 1) as u64;
+            }
+            sort4(&mut k);
+            assert!(k.windows(2).all(|w| w[0] <= w[1]), "{bits:04b} -> {k:?}");
         }
     }
 

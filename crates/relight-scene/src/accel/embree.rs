@@ -210,6 +210,7 @@ impl Drop for Device {
 /// are the mesh's triangle indices.
 pub struct EmbreeScene {
     scene: sys::RTCScene,
+    robust: bool,
     // Dropped after `scene` (see `Drop`), keeping the error slot alive.
     device: Device,
 }
@@ -220,8 +221,8 @@ unsafe impl Send for EmbreeScene {}
 unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
-    /// Copy `mesh` into a new Embree scene (build quality high, default scene flags) and
-    /// commit it.
+    /// Copy `mesh` into a new Embree scene (build quality high, default scene flags: Embree's
+    /// fast mode, which is not watertight, see `embree_robust_is_watertight`) and commit it.
     ///
     /// # Errors
     /// Mesh without usable triangles, out-of-range indices, or any Embree device error.
@@ -230,8 +231,8 @@ impl EmbreeScene {
         Self::build_with_flags(mesh, 0)
     }
 
-    /// As [`EmbreeScene::build`] with `RTC_SCENE_FLAG_ROBUST` (slower, avoids optimisations
-    /// that can make rays slip through shared edges).
+    /// As [`EmbreeScene::build`] with `RTC_SCENE_FLAG_ROBUST`: watertight (no ray slips
+    /// through a shared edge or vertex), somewhat slower.
     ///
     /// # Errors
     /// As [`EmbreeScene::build`].
@@ -252,7 +253,12 @@ impl EmbreeScene {
                 return Err("Embree: rtcNewScene returned null".into());
             }
             // From here on the scene is owned by `this`, so early returns release it.
-            let this = EmbreeScene { scene, device };
+            let robust = flags & sys::RTC_SCENE_FLAG_ROBUST != 0;
+            let this = EmbreeScene {
+                scene,
+                robust,
+                device,
+            };
             sys::rtcSetSceneBuildQuality(scene, sys::RTC_BUILD_QUALITY_HIGH);
             sys::rtcSetSceneFlags(scene, flags);
             let geom = sys::rtcNewGeometry(this.device.raw, sys::RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -428,6 +434,10 @@ impl RayCaster for EmbreeScene {
     }
 
     fn name(&self) -> &'static str {
-        "embree3"
+        if self.robust {
+            "embree3-robust"
+        } else {
+            "embree3"
+        }
     }
 }

@@ -327,6 +327,7 @@ mod tests {
             load_env(&a, None).unwrap().average_luminance(),
             load_env(&b, None).unwrap().average_luminance(),
         );
+        eprintln!("venice mean luminance: exr {la}, hdr {lb}");
         // Same image stored as half floats vs 8-bit-mantissa RGBE: both quantise to < 0.4 %.
         assert!((la / lb - 1.0).abs() < 0.01, "exr {la} vs hdr {lb}");
     }
@@ -360,10 +361,12 @@ mod tests {
             e / s
         };
         let right = rel_err(&|d| d);
-        // Both are resamplings of one capture (256^2 faces vs a 900^2 disc): pixel-level
-        // differences at edges and highlights give ~8-10 % mean relative difference, while
-        // any wrong face placement or flip gives > 100 % (a mirrored or rotated world).
-        assert!(right < 0.15, "cross vs probe: {right}");
+        eprintln!("rnl cross vs probe: mean relative difference {right:.4}");
+        // Both are resamplings of one capture (256^2 faces vs a 900^2 disc), compared with
+        // bilinear lookups: edges and highlights give a 3.0 % mean relative difference
+        // (measured), so 6 % leaves room for lookup changes; any wrong face placement or flip
+        // gives > 100 % (a mirrored or rotated world).
+        assert!(right < 0.06, "cross vs probe: {right}");
         for wrong in [
             |d: Vec3| Vec3::new(-d.x, d.y, d.z),
             |d: Vec3| Vec3::new(d.x, d.y, -d.z),

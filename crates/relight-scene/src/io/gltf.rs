@@ -12,7 +12,8 @@
 //! with `alpha = roughness^2` (glTF spec, Appendix B) clamped to `[1e-3, 1]`:
 //! `metallic >= 0.5` gives [`Material::GgxConductor`] with `specular = baseColor`, otherwise
 //! [`Material::GgxPlastic`] with `diffuse = baseColor`, `specular = 1`, `ior = 1.5` (glTF's
-//! dielectric F0 = 0.04). Primitives without a material get `Material::default()`.
+//! dielectric F0 = 0.04). Primitives without a material get `Material::default()`. A
+//! material that fails `Material::validate` (e.g. a base colour above 1) is an error.
 
 use super::{extension, read_bytes, LoadedMesh};
 use crate::error::SceneError;
@@ -171,7 +172,12 @@ pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
     for root in roots {
         r.visit(root, Mat4::IDENTITY, 0, &mut mesh)?;
     }
-    let mut materials: Vec<Material> = doc.materials.iter().map(to_material).collect();
+    let mut materials = Vec::with_capacity(doc.materials.len() + 1);
+    for (i, m) in doc.materials.iter().enumerate() {
+        let m = to_material(m);
+        m.validate().map_err(|e| r.err(format!("material {i}: {e}")))?;
+        materials.push(m);
+    }
     let default_id = materials.len() as u32;
     if mesh.material_ids.contains(&default_id) {
         materials.push(Material::default());
@@ -186,7 +192,7 @@ pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
 fn to_material(m: &GMaterial) -> Material {
     let p = m.pbr_metallic_roughness.unwrap_or_default();
     let c = p.base_color_factor;
-    let base = Vec3::new(c[0], c[1], c[2]).clamp(Vec3::ZERO, Vec3::ONE);
+    let base = Vec3::new(c[0], c[1], c[2]); // checked by `Material::validate`
     let alpha = (p.roughness_factor * p.roughness_factor).clamp(1e-3, 1.0);
     if p.metallic_factor >= 0.5 {
         Material::GgxConductor {

@@ -200,9 +200,12 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
         kd: Vec3,
         ks: Vec3,
         ns: f32,
+        line: usize,
     }
-    let finish = |r: &Raw| {
-        if r.ks.max_element() > 0.0 && r.ns > 0.0 {
+    // Build and check a material; an invalid one (e.g. Kd + Ks > 1) is an error at its
+    // `newmtl` line rather than a silent rescale.
+    let finish = |name: &str, r: &Raw| {
+        let m = if r.ks.max_element() > 0.0 && r.ns > 0.0 {
             Material::BlinnPhong {
                 diffuse: r.kd,
                 specular: r.ks,
@@ -210,7 +213,10 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
             }
         } else {
             Material::Lambert { albedo: r.kd }
-        }
+        };
+        m.validate()
+            .map(|()| m)
+            .map_err(|e| SceneError::malformed_at(path, r.line, format!("material '{name}': {e}")))
     };
     let mut out = HashMap::new();
     let mut cur: Option<(String, Raw)> = None;
@@ -222,7 +228,8 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
         match key {
             "newmtl" => {
                 if let Some((n, r)) = cur.take() {
-                    out.insert(n, finish(&r));
+                    let m = finish(&n, &r)?;
+                    out.insert(n, m);
                 }
                 let name = line["newmtl".len()..].trim().to_string();
                 cur = Some((
@@ -231,6 +238,7 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
                         kd: Vec3::splat(0.8),
                         ks: Vec3::ZERO,
                         ns: 0.0,
+                        line: ln + 1,
                     },
                 ));
             }
@@ -256,7 +264,8 @@ fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, Scene
         }
     }
     if let Some((n, r)) = cur.take() {
-        out.insert(n, finish(&r));
+        let m = finish(&n, &r)?;
+        out.insert(n, m);
     }
     Ok(out)
 }
@@ -299,6 +308,14 @@ mod tests {
             .normals
             .iter()
             .all(|n| (*n - Vec3::Z).length() < 1e-6));
+    }
+
+    #[test]
+    fn invalid_mtl_material_is_an_error_at_its_line() {
+        let dir = temp_dir("objmtlbad");
+        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 0.9 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
+        let e = load_mesh(&write(&dir, "q.obj", &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"))).unwrap_err();
+        assert!(e.to_string().contains("m.mtl: line 2: material 'hot'"), "{e}");
     }
 
     #[test]
