@@ -46,7 +46,10 @@
 //!   Hammersley set with a per-vertex Cranley-Patterson rotation
 //!   ([`crate::transport::VertexSamples`]). Rays start at the vertex, offset along its
 //!   area-weighted geometric normal (Wächter & Binder 2019). Every pass of the Neumann series
-//!   retraces the same directions. The result depends on the seed only, not on the threads.
+//!   uses the same directions: the first pass keeps its front-facing hits (12 bytes each, up
+//!   to 1 GiB in the worst case) and the others gather from them without casting rays; bigger
+//!   bakes retrace the rays instead, with identical results. The result depends on the seed
+//!   only, not on the threads.
 //!
 //! ## Layout of [`ShTransfer::data`]
 //!
@@ -260,6 +263,17 @@ pub fn bake(
     caster: &dyn RayCaster,
     settings: &ShBakeSettings,
 ) -> Result<ShTransfer, BakeError> {
+    bake_with_hit_budget(mesh, materials, caster, settings, HIT_BUDGET_BYTES)
+}
+
+/// [`bake`] with an explicit memory budget for first-pass hits (tests force both paths).
+fn bake_with_hit_budget(
+    mesh: &TriMesh,
+    materials: &[Material],
+    caster: &dyn RayCaster,
+    settings: &ShBakeSettings,
+    hit_budget: usize,
+) -> Result<ShTransfer, BakeError> {
     settings.validate()?;
     check_mesh(mesh, materials)?;
     let passes = settings.kind.ray_passes().max(1);
@@ -277,6 +291,7 @@ pub fn bake(
             samples: settings.samples,
             seed: settings.seed,
             ng: vertex_geometric_normals(mesh),
+            hit_budget,
             pb: &pb,
         };
         match settings.kind {
@@ -310,6 +325,8 @@ struct Ctx<'a> {
     seed: u64,
     /// Per-vertex geometric normals (ray offsets).
     ng: Vec<Vec3>,
+    /// Bytes allowed for keeping first-pass hits (see [`Ctx::interreflected`]).
+    hit_budget: usize,
     pb: &'a ProgressBar,
 }
 
@@ -391,10 +408,23 @@ impl Ctx<'_> {
     }
 
     /// RGB interreflected transfer: shadowed times albedo, then `bounces` Neumann passes.
+    ///
+    /// When the first pass's front-facing hits fit in `hit_budget` bytes (worst case: every
+    /// ray hits), it records them and the Neumann passes gather from that list without
+    /// casting rays; otherwise every pass retraces the same directions. Both give the same
+    /// bits.
     fn interreflected(&self, albedo: &[Vec3], bounces: u32) -> Vec<f32> {
         let stride = 3 * self.n2;
+        let worst = self.mesh.vertex_count() as u128
+            * self.samples as u128
+            * std::mem::size_of::<FrontHit>() as u128;
         // Bounce 0: direct, shadowed, with the receiver's albedo.
-        let mono = self.shadowed();
+        let (mono, hits) = if bounces > 0 && worst <= self.hit_budget as u128 {
+            let (mono, hits) = self.shadowed_with_hits();
+            (mono, Some(hits))
+        } else {
+            (self.shadowed(), None)
+        };
         let mut prev = vec![0.0f32; self.mesh.vertex_count() * stride];
         for (v, (out, t)) in prev
             .chunks_exact_mut(stride)
@@ -407,15 +437,104 @@ impl Ctx<'_> {
         }
         let mut total = prev.clone();
         for _ in 0..bounces {
-            let next = self.gather(&prev, albedo);
+            let next = match &hits {
+                Some(hits) => self.gather_stored(&prev, albedo, hits),
+                None => self.gather_traced(&prev, albedo),
+            };
             total.iter_mut().zip(&next).for_each(|(t, &x)| *t += x);
             prev = next;
         }
         total
     }
 
-    /// One Neumann pass: `T^{k+1}_p = rho_p (1/N) sum_k [front hit] Tbar^k(hit)`.
-    fn gather(&self, prev: &[f32], albedo: &[Vec3]) -> Vec<f32> {
+    /// As [`Ctx::shadowed`] (same directions, same sums), with closest-hit rays, also
+    /// returning each vertex's front-facing hits in sample order.
+    fn shadowed_with_hits(&self) -> (Vec<f32>, Vec<Vec<FrontHit>>) {
+        let init = || (Vec::new(), vec![0.0f32; self.n2]);
+        let per_vertex: Vec<(Vec<f32>, Vec<FrontHit>)> = (0..self.mesh.vertex_count())
+            .into_par_iter()
+            .with_min_len(CHUNK)
+            .map_init(init, |(rays, y), v| {
+                let (mut t, mut hits) = (vec![0.0f32; self.n2], Vec::new());
+                if let Some(n) = self.normal(v) {
+                    self.vertex_rays(v, n, rays);
+                    for ray in rays.iter() {
+                        match self.caster.intersect(ray) {
+                            None => {
+                                eval_sh(self.order, ray.dir, y);
+                                t.iter_mut().zip(y.iter()).for_each(|(o, &yi)| *o += yi);
+                            }
+                            Some(h) if self.front_facing(h.tri, ray.dir) => {
+                                hits.push(FrontHit { tri: h.tri, u: h.u, v: h.v });
+                            }
+                            Some(_) => {}
+                        }
+                    }
+                    let w = 1.0 / self.samples as f32;
+                    t.iter_mut().for_each(|o| *o *= w);
+                    hits.shrink_to_fit();
+                }
+                self.pb.inc(1);
+                (t, hits)
+            })
+            .collect();
+        let mut mono = Vec::with_capacity(self.mesh.vertex_count() * self.n2);
+        let mut hits = Vec::with_capacity(self.mesh.vertex_count());
+        for (t, h) in per_vertex {
+            mono.extend_from_slice(&t);
+            hits.push(h);
+        }
+        (mono, hits)
+    }
+
+    /// Whether a ray in direction `dir` hits triangle `tri` from its front. Surfaces are
+    /// one-sided: the back of a triangle sends nothing.
+    #[inline]
+    fn front_facing(&self, tri: u32, dir: Vec3) -> bool {
+        self.mesh.geometric_normal(tri as usize).dot(dir) < 0.0
+    }
+
+    /// Add bounce `k`'s transfer at barycentrics `(u, v)` of `tri` (`Tbar^k(q)`) to `acc`.
+    #[inline]
+    fn accumulate(&self, prev: &[f32], tri: u32, u: f32, v: f32, acc: &mut [f32]) {
+        let stride = acc.len();
+        let [a, b, c] = self.mesh.indices[tri as usize].map(|i| i as usize * stride);
+        let (wa, wb, wc) = (1.0 - u - v, u, v);
+        let (ta, tb, tc) = (&prev[a..a + stride], &prev[b..b + stride], &prev[c..c + stride]);
+        for k in 0..stride {
+            acc[k] += wa * ta[k] + wb * tb[k] + wc * tc[k];
+        }
+    }
+
+    /// `out = rho (1/N) acc` per channel.
+    #[inline]
+    fn finish_gather(&self, acc: &[f32], rho: Vec3, out: &mut [f32]) {
+        let w = rho / self.samples as f32;
+        for (o3, a3) in out.chunks_exact_mut(3).zip(acc.chunks_exact(3)) {
+            o3[0] = a3[0] * w.x;
+            o3[1] = a3[1] * w.y;
+            o3[2] = a3[2] * w.z;
+        }
+    }
+
+    /// One Neumann pass, `T^{k+1}_p = rho_p (1/N) sum_k [front hit] Tbar^k(hit)`, from the
+    /// hits kept by [`Ctx::shadowed_with_hits`].
+    fn gather_stored(&self, prev: &[f32], albedo: &[Vec3], hits: &[Vec<FrontHit>]) -> Vec<f32> {
+        let stride = 3 * self.n2;
+        self.per_vertex(stride, || vec![0.0f32; stride], |v, out, acc| {
+            if albedo[v] == Vec3::ZERO || self.normal(v).is_none() {
+                return; // reflects nothing
+            }
+            acc.fill(0.0);
+            for h in &hits[v] {
+                self.accumulate(prev, h.tri, h.u, h.v, acc);
+            }
+            self.finish_gather(acc, albedo[v], out);
+        })
+    }
+
+    /// One Neumann pass as [`Ctx::gather_stored`], retracing the first pass's rays.
+    fn gather_traced(&self, prev: &[f32], albedo: &[Vec3]) -> Vec<f32> {
         let stride = 3 * self.n2;
         let init = || (Vec::new(), vec![0.0f32; stride]);
         self.per_vertex(stride, init, |v, out, (rays, acc)| {
@@ -426,34 +545,29 @@ impl Ctx<'_> {
             self.vertex_rays(v, n, rays);
             acc.fill(0.0);
             for ray in rays.iter() {
-                let Some(hit) = self.caster.intersect(ray) else {
-                    continue;
-                };
-                let tri = hit.tri as usize;
-                // One-sided surfaces: the back of a triangle sends nothing.
-                if self.mesh.geometric_normal(tri).dot(ray.dir) >= 0.0 {
-                    continue;
-                }
-                let [a, b, c] = self.mesh.indices[tri].map(|i| i as usize * stride);
-                let (wa, wb, wc) = (1.0 - hit.u - hit.v, hit.u, hit.v);
-                let (ta, tb, tc) = (
-                    &prev[a..a + stride],
-                    &prev[b..b + stride],
-                    &prev[c..c + stride],
-                );
-                for k in 0..stride {
-                    acc[k] += wa * ta[k] + wb * tb[k] + wc * tc[k];
+                match self.caster.intersect(ray) {
+                    Some(h) if self.front_facing(h.tri, ray.dir) => {
+                        self.accumulate(prev, h.tri, h.u, h.v, acc);
+                    }
+                    _ => {}
                 }
             }
-            let w = albedo[v] / self.samples as f32;
-            for (o3, a3) in out.chunks_exact_mut(3).zip(acc.chunks_exact(3)) {
-                o3[0] = a3[0] * w.x;
-                o3[1] = a3[1] * w.y;
-                o3[2] = a3[2] * w.z;
-            }
+            self.finish_gather(acc, albedo[v], out);
         })
     }
 }
+
+/// A front-facing hit of one of a vertex's rays, kept between Neumann passes (12 bytes).
+#[derive(Clone, Copy, Debug)]
+struct FrontHit {
+    tri: u32,
+    u: f32,
+    v: f32,
+}
+
+/// Memory the interreflected bake may spend on keeping first-pass hits (worst case, every
+/// ray a hit) instead of retracing rays in every Neumann pass.
+const HIT_BUDGET_BYTES: usize = 1 << 30;
 
 #[cfg(test)]
 mod tests;

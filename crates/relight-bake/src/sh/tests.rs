@@ -392,6 +392,25 @@ fn bake_is_deterministic_for_a_seed_whatever_the_thread_count() {
 }
 
 #[test]
+fn kept_hits_and_retraced_rays_give_the_same_bits() {
+    let mesh = sphere_on_plane();
+    let caster = build_default(&mesh);
+    let mats = [lambert(Vec3::new(0.8, 0.6, 0.4)), lambert(Vec3::splat(0.5))];
+    let s = settings(4, 64, ShTransferKind::Interreflected { bounces: 2 });
+    let kept = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, usize::MAX).unwrap();
+    let traced = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, 0).unwrap();
+    assert_eq!(kept.data, traced.data);
+    // And the interreflected bounce 0 (closest-hit rays) matches the shadowed bake (occlusion
+    // rays): its DC term is the shadowed one times albedo, up to the albedo product.
+    let sh = bake(&mesh, &mats, caster.as_ref(), &settings(4, 64, ShTransferKind::Shadowed)).unwrap();
+    let ir0 = bake(&mesh, &mats, caster.as_ref(), &settings(4, 64, ShTransferKind::Interreflected { bounces: 0 })).unwrap();
+    let albedo = crate::transport::vertex_albedo(&mesh, &mats);
+    for v in 0..mesh.vertex_count() {
+        assert_eq!(ir0.vertex(v)[0], albedo[v].x * sh.vertex(v)[0]);
+    }
+}
+
+#[test]
 fn validation_rejects_bad_settings_and_layouts() {
     let ok = ShBakeSettings::default();
     assert!(ok.validate().is_ok());

@@ -5,28 +5,35 @@
 //! 1990, "Heuristics for ray tracing using space subdivision") evaluated on centroid bins
 //! (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"); the SAH counts
 //! primitives in blocks of 4 because a leaf is one 4-wide triangle pack (as Embree does).
-//! Subtrees above [`PAR_MIN`] primitives are built in parallel with `rayon::join`. Below
-//! [`SAH_MAX_DEPTH`] splits fall back to object-median splits, bounding the depth and hence the
+//! Subtrees of at least [`PAR_MIN`] primitives are built in parallel with `rayon::join`. Deeper
+//! than [`SAH_MAX_DEPTH`], splits are object medians, bounding the depth and hence the
 //! traversal stack.
 //!
 //! **Collapse.** The binary tree becomes an 8-wide one by greedily opening the child with the
 //! largest surface area until a node has 8 children (the wide-BVH layout of Wald, Benthin &
 //! Boulos 2008, "Getting rid of packets", and Ernst & Greiner 2008 "Multi bounding volume
-//! hierarchies"; Ylitie et al. 2017 give an optimal, costlier collapse). Each [`Node8`] holds its
-//! children's boxes as `[axis][child]` arrays so the 8 slab tests of one node are one loop that
-//! LLVM vectorises (AVX2 when the CPU has it, detected at run time; SSE2 otherwise).
+//! hierarchies"; Ylitie et al. 2017 give an optimal, costlier collapse). Each `Node8` holds its
+//! children's boxes as `[axis][child]` arrays (SoA), so the 8 slab tests of one node are a few
+//! 8-wide AVX instructions (`std::arch`, used when run-time detection finds AVX2 and FMA; a
+//! portable scalar loop otherwise).
 //!
-//! **Traversal.** Closest hit: nearest child first (children sorted by entry distance), subtrees
-//! farther than the current hit skipped. Occlusion: any order, exit at the first hit. The slab
-//! test uses `(p - o) / d` and widens the exit distance by `1 + 2 gamma(3)` (Ize 2013, "Robust
-//! BVH ray traversal") so rounding never culls a box the ray touches.
+//! **Traversal.** Closest hit: nearest child first (hit children sorted by entry distance with
+//! small sorting networks), subtrees farther than the current hit skipped. Occlusion: children
+//! in stored order, exit at the first hit. Stacked subtrees are prefetched, since traversal is
+//! bound by memory latency. The slab test computes `(p - o) * (1 / d)` and widens the exit
+//! distance by `1 + 2 gamma(3)` (Ize 2013, "Robust BVH ray traversal"; Pharr et al., PBRT 3rd
+//! ed., 3.9.2) so rounding never culls a box the ray touches; a zero direction component uses
+//! `±f32::MAX` as its inverse, which keeps `0 * inv` finite (no NaN).
 //!
 //! **Triangles.** The watertight test of Woop, Benthin & Wald 2013 ("Watertight ray/triangle
-//! intersection", JCGT 2(1)): translate to the ray origin, shear so the ray is +z, and take 2D
-//! edge functions. A shared edge yields exactly negated edge functions in both triangles, so a
-//! ray never slips between them; an edge function of exactly zero counts as inside.
-//! No back-face culling. Degenerate triangles (zero cross product) and triangles with
-//! non-finite corners are left out of the tree: they are never hit.
+//! intersection", JCGT 2(1)), 4 triangles at once: translate to the ray origin, shear so the
+//! ray is +z, and take 2D edge functions. A shared edge yields exactly negated edge functions
+//! in both triangles (same products, no FMA contraction), so a ray never slips between them.
+//! Instead of the paper's double-precision fallback, an edge function of exactly zero counts
+//! as inside, so a ray exactly through an edge may report either triangle but never neither.
+//! The distance test is division-free (`T` against `t * det`, sign folded in). No back-face
+//! culling. Degenerate triangles (zero cross product) and triangles with non-finite corners
+//! are left out of the tree: they are never hit.
 
 use super::{Hit, Ray, RayCaster};
 use crate::mesh::TriMesh;
@@ -43,7 +50,7 @@ pub const PAR_MIN: usize = 4096;
 const STACK: usize = 512;
 /// Child code of an unused node slot.
 const EMPTY: u32 = u32::MAX;
-/// Child code bit marking a leaf; the other bits index [`Bvh::packs`].
+/// Child code bit marking a leaf; the other bits index `Bvh::packs`.
 const LEAF_BIT: u32 = 1 << 31;
 /// `1 + 2 gamma(3)` with `gamma(n) = n eps / (1 - n eps)`, `eps = 2^-24` (Ize 2013).
 const ROBUST_FAR: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);

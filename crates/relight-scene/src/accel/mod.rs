@@ -1,9 +1,15 @@
 //! Ray casting against triangle meshes, behind one small interface ([`RayCaster`]).
 //!
-//! Back-ends: relight's own BVH (`bvh`, pure Rust) and Embree 3 (`embree`, feature
-//! `embree`, Debian `libembree-dev`). [`build_default`] picks the fastest available one.
+//! Back-ends ([`Backend`]): relight's own BVH ([`bvh`], pure Rust, 8-wide, watertight) and
+//! Embree 3 (`embree`, feature `embree`, Debian `libembree-dev`, through relight's own FFI).
+//! [`build_default`] picks the fastest available one (Embree's default mode, which is not
+//! watertight: a ray aimed exactly at a shared edge or vertex can slip through; use
+//! [`Backend::Bvh`] or `embree::EmbreeScene::build_robust` where that matters).
+//! [`bench::bench_occlusion`] measures them against each other on the same rays.
+//!
 //! Hits report `t` along the (not necessarily unit) direction, the triangle index and
-//! Embree-convention barycentrics `(u, v)`: point = `(1-u-v) a + u b + v c`.
+//! Embree-convention barycentrics `(u, v)`: point = `(1-u-v) a + u b + v c`. Rays start at
+//! `origin + tmin * dir`; spawn secondary rays with [`offset_ray_origin`] and `tmin = 0`.
 
 use crate::mesh::TriMesh;
 use crate::Vec3;
@@ -90,7 +96,8 @@ pub mod embree;
 pub enum Backend {
     /// relight's own 8-wide BVH ([`bvh::Bvh`], pure Rust, SAH quality preset).
     Bvh,
-    /// Embree 3 through relight's own FFI ([`embree::EmbreeScene`]); needs feature `embree`.
+    /// Embree 3 through relight's own FFI (`embree::EmbreeScene`, default scene flags); needs
+    /// feature `embree`.
     Embree,
 }
 
