@@ -465,7 +465,11 @@ impl Ctx<'_> {
                                 t.iter_mut().zip(y.iter()).for_each(|(o, &yi)| *o += yi);
                             }
                             Some(h) if self.front_facing(h.tri, ray.dir) => {
-                                hits.push(FrontHit { tri: h.tri, u: h.u, v: h.v });
+                                hits.push(FrontHit {
+                                    tri: h.tri,
+                                    u: h.u,
+                                    v: h.v,
+                                });
                             }
                             Some(_) => {}
                         }
@@ -500,7 +504,11 @@ impl Ctx<'_> {
         let stride = acc.len();
         let [a, b, c] = self.mesh.indices[tri as usize].map(|i| i as usize * stride);
         let (wa, wb, wc) = (1.0 - u - v, u, v);
-        let (ta, tb, tc) = (&prev[a..a + stride], &prev[b..b + stride], &prev[c..c + stride]);
+        let (ta, tb, tc) = (
+            &prev[a..a + stride],
+            &prev[b..b + stride],
+            &prev[c..c + stride],
+        );
         for k in 0..stride {
             acc[k] += wa * ta[k] + wb * tb[k] + wc * tc[k];
         }
@@ -521,16 +529,20 @@ impl Ctx<'_> {
     /// hits kept by [`Ctx::shadowed_with_hits`].
     fn gather_stored(&self, prev: &[f32], albedo: &[Vec3], hits: &[Vec<FrontHit>]) -> Vec<f32> {
         let stride = 3 * self.n2;
-        self.per_vertex(stride, || vec![0.0f32; stride], |v, out, acc| {
-            if albedo[v] == Vec3::ZERO || self.normal(v).is_none() {
-                return; // reflects nothing
-            }
-            acc.fill(0.0);
-            for h in &hits[v] {
-                self.accumulate(prev, h.tri, h.u, h.v, acc);
-            }
-            self.finish_gather(acc, albedo[v], out);
-        })
+        self.per_vertex(
+            stride,
+            || vec![0.0f32; stride],
+            |v, out, acc| {
+                if albedo[v] == Vec3::ZERO || self.normal(v).is_none() {
+                    return; // reflects nothing
+                }
+                acc.fill(0.0);
+                for h in &hits[v] {
+                    self.accumulate(prev, h.tri, h.u, h.v, acc);
+                }
+                self.finish_gather(acc, albedo[v], out);
+            },
+        )
     }
 
     /// One Neumann pass as [`Ctx::gather_stored`], retracing the first pass's rays.

@@ -143,11 +143,18 @@ pub fn reference_script() -> PathBuf {
 }
 
 /// The Python that runs Mitsuba: `$RELIGHT_MITSUBA_PYTHON`, else
-/// `/root/.cache/relight/venv/bin/python`, if it can `import mitsuba`; `Err` says why not.
+/// `$RELIGHT_VENV/bin/python`, else `$HOME/.cache/relight/venv/bin/python` (where
+/// `scripts/setup.sh` puts it), if it can `import mitsuba`; `Err` says why not.
 pub fn mitsuba_python() -> Result<PathBuf, String> {
     let py = std::env::var_os("RELIGHT_MITSUBA_PYTHON")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/root/.cache/relight/venv/bin/python"));
+        .unwrap_or_else(|| {
+            let venv = std::env::var_os("RELIGHT_VENV").map(PathBuf::from).unwrap_or_else(|| {
+                let home = std::env::var_os("HOME").map(PathBuf::from).unwrap_or_else(|| "/root".into());
+                home.join(".cache/relight/venv")
+            });
+            venv.join("bin/python")
+        });
     let out = Command::new(&py)
         .args(["-c", "import mitsuba"])
         .output()

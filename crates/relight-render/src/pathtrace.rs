@@ -412,16 +412,40 @@ mod tests {
         // material, Blinn-Phong included (which Mitsuba cannot check).
         let l = 1.7f32;
         let mats = [
-            Material::Lambert { albedo: Vec3::new(0.9, 0.5, 0.2) },
-            Material::BlinnPhong { diffuse: Vec3::splat(0.3), specular: Vec3::splat(0.6), exponent: 50.0 },
-            Material::GgxConductor { specular: Vec3::new(0.9, 0.7, 0.4), alpha: 0.3 },
-            Material::GgxPlastic { diffuse: Vec3::new(0.2, 0.5, 0.8), specular: Vec3::ONE, alpha: 0.2, ior: 1.49 },
+            Material::Lambert {
+                albedo: Vec3::new(0.9, 0.5, 0.2),
+            },
+            Material::BlinnPhong {
+                diffuse: Vec3::splat(0.3),
+                specular: Vec3::splat(0.6),
+                exponent: 50.0,
+            },
+            Material::GgxConductor {
+                specular: Vec3::new(0.9, 0.7, 0.4),
+                alpha: 0.3,
+            },
+            Material::GgxPlastic {
+                diffuse: Vec3::new(0.2, 0.5, 0.8),
+                specular: Vec3::ONE,
+                alpha: 0.2,
+                ior: 1.49,
+            },
         ];
         for m in mats {
             let mut scene = sphere_scene(m, EnvMap::constant(Vec3::splat(l)));
-            scene.camera = Camera { fov_deg: 1.0, width: 1, height: 1, ..scene.camera };
+            scene.camera = Camera {
+                fov_deg: 1.0,
+                width: 1,
+                height: 1,
+                ..scene.camera
+            };
             let caster = build_default(&scene.mesh);
-            let s = PtSettings { spp: 40_000, max_depth: 2, seed: 5, ..Default::default() };
+            let s = PtSettings {
+                spp: 40_000,
+                max_depth: 2,
+                seed: 5,
+                ..Default::default()
+            };
             let (img, var) = render_with_variance(&scene, caster.as_ref(), &s);
             let mut rng = Rng::new(99, 0);
             let n = 400_000;
@@ -436,7 +460,10 @@ mod tests {
             // Path tracer's standard error plus a generous allowance for the albedo estimate
             // (importance sampled, relative error well below 0.5%) and the 0.7 degree spread.
             let tol = var.get(0, 0).powf(0.5) * 4.0 + want * 0.01;
-            assert!(((got - want).abs() - tol).max_element() <= 0.0, "{m:?}: {got} vs {want} +- {tol}");
+            assert!(
+                ((got - want).abs() - tol).max_element() <= 0.0,
+                "{m:?}: {got} vs {want} +- {tol}"
+            );
         }
     }
 }

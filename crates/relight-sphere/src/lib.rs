@@ -65,6 +65,7 @@ pub mod probe;
 pub mod quadrature;
 pub mod sh;
 pub mod sh_product;
+pub mod sh_project;
 pub mod sh_rotate;
 pub mod warp;
 

@@ -227,12 +227,32 @@ pub fn eval_sh_slow(order: usize, dir: Vec3, out: &mut [f64]) {
     }
 }
 
-/// RGB SH coefficients `L_lm = sum_i value_i Y_lm(dir_i) w_i` of `map` up to `order`, using the
-/// exact quadrature weights of [`EnvMap::texel`] (every layout) and f64 accumulation.
+/// RGB SH coefficients `L_lm = int L(w) Y_lm(w) dw` of `map` up to `order` (f64 accumulation).
+///
+/// * **Latlong**: exact for the function the map represents, its bilinear interpolant (what
+///   [`EnvMap::eval`] and Mitsuba's `envmap` return), by the separable projection of
+///   [`crate::sh_project`]; a constant map projects to `L_00` only (to rounding).
+/// * **Cube, probe**: the point rule [`project_env_point_rule`] (their interpolants are not
+///   separable; see [`crate::sh_project`]). A constant cube leaks nothing above band 0 (to
+///   rounding), a constant 48-pixel probe about 1e-3 of `L_00`.
+///
+/// # Panics
+/// Panics if `order > MAX_ORDER` (latlong; debug builds assert it for the other layouts).
+pub fn project_env(map: &EnvMap, order: usize) -> Vec<Vec3> {
+    match map.layout() {
+        crate::envmap::EnvLayout::LatLong => crate::sh_project::project_latlong(map, order),
+        _ => project_env_point_rule(map, order),
+    }
+}
+
+/// Point-rule projection `L_lm = sum_i value_i Y_lm(dir_i) w_i` with the exact quadrature
+/// weights of [`EnvMap::texel`] (every layout) and f64 accumulation. Exact only for `Y_00`: e.g.
+/// a constant 64 x 33 latlong map leaks 1.6e-3 of `L_00` into band 2. Kept for the cube and
+/// probe layouts and for comparisons; [`project_env`] is exact for latlong maps.
 ///
 /// # Panics
 /// Debug builds assert `order <= MAX_ORDER`.
-pub fn project_env(map: &EnvMap, order: usize) -> Vec<Vec3> {
+pub fn project_env_point_rule(map: &EnvMap, order: usize) -> Vec<Vec3> {
     debug_assert!(order <= MAX_ORDER);
     let n = sh_count(order);
     let mut acc = vec![[0f64; 3]; n];
@@ -546,13 +566,13 @@ mod tests {
                 m.layout(),
                 p[0]
             );
-            // Higher bands vanish up to the quadrature error of Y_lm itself: cube texels are
-            // symmetric under the octahedral group, so bands 1..3 cancel to rounding; latlong rows
-            // and probe pixels are not Gauss nodes, leaving O(h^2) (measured 1.6e-3 for 33 rows,
+            // Higher bands vanish: latlong maps are projected exactly (`sh_project`); cube
+            // texels are symmetric under the octahedral group, so the point rule's bands 1..3
+            // cancel to rounding; probe pixels are not Gauss nodes, leaving O(h^2) (measured
             // 1.0e-3 for a 48-pixel probe).
             let tol = match m.layout() {
-                EnvLayout::Cube => 1e-6,
-                _ => 2e-3,
+                EnvLayout::Probe => 2e-3,
+                _ => 1e-6,
             };
             for (i, v) in p.iter().enumerate().skip(1) {
                 assert!(

@@ -400,14 +400,9 @@ fn kept_hits_and_retraced_rays_give_the_same_bits() {
     let kept = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, usize::MAX).unwrap();
     let traced = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, 0).unwrap();
     assert_eq!(kept.data, traced.data);
-    // And the interreflected bounce 0 (closest-hit rays) matches the shadowed bake (occlusion
-    // rays): its DC term is the shadowed one times albedo, up to the albedo product.
-    let sh = bake(&mesh, &mats, caster.as_ref(), &settings(4, 64, ShTransferKind::Shadowed)).unwrap();
-    let ir0 = bake(&mesh, &mats, caster.as_ref(), &settings(4, 64, ShTransferKind::Interreflected { bounces: 0 })).unwrap();
-    let albedo = crate::transport::vertex_albedo(&mesh, &mats);
-    for v in 0..mesh.vertex_count() {
-        assert_eq!(ir0.vertex(v)[0], albedo[v].x * sh.vertex(v)[0]);
-    }
+    // (That closest-hit rays of the kept-hits pass see the same visibility as the occlusion
+    // rays of the shadowed bake is checked bit for bit by
+    // `interreflected_with_black_surroundings_is_shadowed_times_albedo`.)
 }
 
 #[test]
@@ -496,7 +491,7 @@ fn bake_bunny_figures() {
         let t = bake(&mesh, &mats, caster.as_ref(), &s).unwrap();
         let secs = t0.elapsed().as_secs_f64();
         let rays = (mesh.vertex_count() as u64 * 256 * kind.ray_passes()) as f64;
-        println!("{kind:?}: {secs:.2} s, {:.2} Mrays/s", rays / secs / 1e6);
+        println!("{kind:?}: {secs:.2} s ({:.2} M vertex-directions/s)", rays / secs / 1e6);
         t.validate().unwrap();
     }
 }

@@ -4,7 +4,7 @@
 //! The `#[repr(C)]` structs below mirror `rtcore_ray.h` / `rtcore_common.h` of that release
 //! (`RTC_MAX_INSTANCE_LEVEL_COUNT = 1`, `RTC_MIN_WIDTH = 0`); their sizes and alignments are
 //! checked at compile time. `rtcInitIntersectContext` is a `static inline` in the header, so
-//! [`init_context`] re-implements it.
+//! `init_context` re-implements it.
 //!
 //! Thread safety: after `rtcCommitScene`, Embree allows concurrent `rtcIntersect*` /
 //! `rtcOccluded*` calls on one scene from any number of threads (Embree 3 API docs,
