@@ -104,6 +104,7 @@ pub fn render_with(
     let ss = opts.supersample as usize;
     let (w, h) = (frame.width as usize, frame.height as usize);
 
+    let t0 = std::time::Instant::now();
     // Transform vertices to camera space once.
     let cam: Vec<Vec3> = mesh
         .positions
@@ -122,12 +123,31 @@ pub fn render_with(
         .par_iter()
         .flat_map_iter(|&idx| {
             let v = idx.map(|i| (cam[i as usize], vertex_radiance[i as usize]));
-            setup_triangle(v, &frame, ss as f32, near)
+            setup_triangle(v, &frame, ss as f32, near).into_iter().flatten()
         })
         .collect();
 
-    // Rasterise bands of image rows in parallel; each band owns its samples.
+    eprintln!("setup {:?}", t0.elapsed());
+    // Bin triangles (in mesh order, which keeps the depth tie rule) by the bands of image rows
+    // their bounding boxes touch, dropping those entirely off screen.
     const BAND: usize = 8;
+    let band_samples = (BAND * ss) as f32;
+    let bands = h.div_ceil(BAND);
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (i, t) in tris.iter().enumerate() {
+        let (xmin, xmax) = (t.x[0].min(t.x[1]).min(t.x[2]), t.x[0].max(t.x[1]).max(t.x[2]));
+        if t.ymax < 0.0 || t.ymin > (h * ss) as f32 || xmax < 0.0 || xmin > (w * ss) as f32 {
+            continue;
+        }
+        let b0 = (t.ymin.max(0.0) / band_samples) as usize;
+        let b1 = ((t.ymax / band_samples) as usize).min(bands - 1);
+        for bin in &mut bins[b0.min(bands - 1)..=b1] {
+            bin.push(i as u32);
+        }
+    }
+
+    eprintln!("bin {:?}", t0.elapsed());
+    // Rasterise bands of image rows in parallel; each band owns its samples.
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
     image
@@ -139,6 +159,7 @@ pub fn render_with(
             let rows = pixels.len() / w;
             raster_band(
                 &tris,
+                &bins[band],
                 band * BAND,
                 rows,
                 w,
@@ -149,6 +170,7 @@ pub fn render_with(
                 cov,
             );
         });
+    eprintln!("raster {:?}", t0.elapsed());
     Rendered { image, coverage }
 }
 
@@ -175,9 +197,20 @@ fn setup_triangle(
     frame: &CameraFrame,
     scale: f32,
     near: f32,
-) -> impl Iterator<Item = ScreenTri> {
+) -> [Option<ScreenTri>; 2] {
+    let project = |(p, c): (Vec3, Vec3)| {
+        let sx = p.x / (p.z * frame.tan_half_x);
+        let sy = p.y / (p.z * frame.tan_half_y);
+        let x = (sx + 1.0) * 0.5 * frame.width as f32 * scale;
+        let y = (1.0 - sy) * 0.5 * frame.height as f32 * scale;
+        (x, y, 1.0 / p.z, c / p.z)
+    };
+    // Common case: entirely in front of the near plane.
+    if v.iter().all(|(p, _)| p.z >= near) {
+        return [make_tri(v.map(project)), None];
+    }
     // Sutherland-Hodgman against z >= near; attributes interpolate linearly in camera space.
-    let mut poly: [(Vec3, Vec3); 4] = [(Vec3::ZERO, Vec3::ZERO); 4];
+    let mut poly: [(Vec3, Vec3); 4] = [(Vec3::Z, Vec3::ZERO); 4];
     let mut n = 0;
     for i in 0..3 {
         let (a, b) = (v[i], v[(i + 1) % 3]);
@@ -193,16 +226,13 @@ fn setup_triangle(
             n += 1;
         }
     }
-    let project = |(p, c): (Vec3, Vec3)| {
-        let sx = p.x / (p.z * frame.tan_half_x);
-        let sy = p.y / (p.z * frame.tan_half_y);
-        let x = (sx + 1.0) * 0.5 * frame.width as f32 * scale;
-        let y = (1.0 - sy) * 0.5 * frame.height as f32 * scale;
-        (x, y, 1.0 / p.z, c / p.z)
-    };
     // At most 4 vertices after clipping one plane: a fan of at most 2 triangles.
-    let verts = poly.map(project);
-    (1..n.saturating_sub(1)).filter_map(move |k| make_tri([verts[0], verts[k], verts[k + 1]]))
+    let p = poly.map(project);
+    match n {
+        3 => [make_tri([p[0], p[1], p[2]]), None],
+        4 => [make_tri([p[0], p[1], p[2]]), make_tri([p[0], p[2], p[3]])],
+        _ => [None, None],
+    }
 }
 
 /// Orient a projected triangle counter-clockwise on screen; `None` if degenerate or not finite.
@@ -240,10 +270,12 @@ fn edge(ax: f32, ay: f32, bx: f32, by: f32, px: f32, py: f32) -> Option<f32> {
     }
 }
 
-/// Render image rows `[row0, row0 + rows)` into `pixels` / `cov` (that band's slices).
+/// Render image rows `[row0, row0 + rows)` into `pixels` / `cov` (that band's slices), drawing
+/// the triangles `tris[bin[..]]` in order.
 #[allow(clippy::too_many_arguments)]
 fn raster_band(
     tris: &[ScreenTri],
+    bin: &[u32],
     row0: usize,
     rows: usize,
     w: usize,
@@ -260,7 +292,7 @@ fn raster_band(
     let mut color = vec![Vec3::ZERO; sw * sh];
     let (band_lo, band_hi) = (s0 as f32, (s0 + sh) as f32);
 
-    for t in tris {
+    for t in bin.iter().map(|&i| &tris[i as usize]) {
         if t.ymax < band_lo || t.ymin > band_hi {
             continue;
         }

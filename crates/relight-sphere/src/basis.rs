@@ -102,6 +102,11 @@ impl SphericalBasis for ShBasis {
         debug_assert_eq!(coeffs.len(), self.coeff_count());
         crate::sh::eval_rgb(coeffs, dir)
     }
+
+    /// Exact for latlong maps (`sh_project`), the point rule for cube and probe maps.
+    fn project_env(&self, map: &EnvMap) -> Vec<Vec3> {
+        crate::sh::project_env(map, self.order)
+    }
 }
 
 #[cfg(test)]

@@ -148,7 +148,7 @@ impl EnvMap {
     }
 
     /// A constant environment (a small 64 x 33 latlong map filled with `rgb`; dense enough
-    /// that its SH projection has bands above 0 below 1e-3 of band 0).
+    /// that its SH projection has bands above 0 at rounding level, ~1e-15 of band 0, with the exact latlong projection of `sh_project`).
     pub fn constant(rgb: Vec3) -> EnvMap {
         EnvMap::latlong(64, 33, vec![rgb; 64 * 33])
     }

@@ -441,3 +441,29 @@ impl RayCaster for EmbreeScene {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn device_errors_are_reported_not_panics() {
+        let device = Device::new().unwrap();
+        device.check("fresh device").unwrap();
+        // An invalid geometry type: Embree returns null and reports an error.
+        // SAFETY: live device; Embree validates the type argument.
+        let g = unsafe { sys::rtcNewGeometry(device.raw, 999) };
+        assert!(g.is_null());
+        let err = device.check("rtcNewGeometry").unwrap_err();
+        assert!(err.contains("rtcNewGeometry") && err.contains("Embree"), "{err}");
+        // The error is consumed: the device is usable again.
+        device.check("after the error").unwrap();
+    }
+
+    #[test]
+    fn robust_and_default_scenes_report_names() {
+        let m = crate::accel::bvh::tests::sphere(6, 12);
+        assert_eq!(EmbreeScene::build(&m).unwrap().name(), "embree3");
+        assert_eq!(EmbreeScene::build_robust(&m).unwrap().name(), "embree3-robust");
+    }
+}
