@@ -116,6 +116,7 @@ pub fn render_with(
         .collect();
     let far = cam.iter().fold(0.0f32, |m, c| m.max(c.length()));
     let near = (1e-5 * far).max(f32::MIN_POSITIVE);
+    eprintln!("cam {:?}", t0.elapsed());
 
     // Clip, project to the sample grid and set up every triangle.
     let tris: Vec<ScreenTri> = mesh
