@@ -86,7 +86,8 @@ pub fn render(
 /// Rasterise with options (supersampling); also returns per-pixel coverage.
 ///
 /// # Panics
-/// If `vertex_radiance.len() != mesh.vertex_count()` or `opts.supersample == 0`.
+/// If `vertex_radiance.len() != mesh.vertex_count()`, `opts.supersample == 0` or the camera's
+/// image is empty.
 pub fn render_with(
     mesh: &TriMesh,
     camera: &Camera,
@@ -103,8 +104,8 @@ pub fn render_with(
     let frame = camera.frame();
     let ss = opts.supersample as usize;
     let (w, h) = (frame.width as usize, frame.height as usize);
+    assert!(w > 0 && h > 0, "empty image {w}x{h}");
 
-    let t0 = std::time::Instant::now();
     // Transform vertices to camera space once.
     let cam: Vec<Vec3> = mesh
         .positions
@@ -116,38 +117,33 @@ pub fn render_with(
         .collect();
     let far = cam.iter().fold(0.0f32, |m, c| m.max(c.length()));
     let near = (1e-5 * far).max(f32::MIN_POSITIVE);
-    eprintln!("cam {:?}", t0.elapsed());
+    let setup = Setup {
+        cam: &cam,
+        radiance: vertex_radiance,
+        frame,
+        scale: ss as f32,
+        near,
+    };
 
-    // Clip, project to the sample grid and set up every triangle.
-    let tris: Vec<ScreenTri> = mesh
+    // Bin triangle indices (in mesh order, which keeps the depth tie rule) by the bands of
+    // image rows their screen bounding boxes touch, dropping those entirely off screen. Bands
+    // set their triangles up themselves: no per-triangle array as large as the mesh.
+    const BAND: usize = 8;
+    let bands = h.div_ceil(BAND);
+    let ranges: Vec<Option<(u32, u32)>> = mesh
         .indices
         .par_iter()
-        .flat_map_iter(|&idx| {
-            let v = idx.map(|i| (cam[i as usize], vertex_radiance[i as usize]));
-            setup_triangle(v, &frame, ss as f32, near).into_iter().flatten()
-        })
+        .map(|&tri| setup.band_range(tri, w, h, BAND))
         .collect();
-
-    eprintln!("setup {:?}", t0.elapsed());
-    // Bin triangles (in mesh order, which keeps the depth tie rule) by the bands of image rows
-    // their bounding boxes touch, dropping those entirely off screen.
-    const BAND: usize = 8;
-    let band_samples = (BAND * ss) as f32;
-    let bands = h.div_ceil(BAND);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (i, t) in tris.iter().enumerate() {
-        let (xmin, xmax) = (t.x[0].min(t.x[1]).min(t.x[2]), t.x[0].max(t.x[1]).max(t.x[2]));
-        if t.ymax < 0.0 || t.ymin > (h * ss) as f32 || xmax < 0.0 || xmin > (w * ss) as f32 {
-            continue;
-        }
-        let b0 = (t.ymin.max(0.0) / band_samples) as usize;
-        let b1 = ((t.ymax / band_samples) as usize).min(bands - 1);
-        for bin in &mut bins[b0.min(bands - 1)..=b1] {
-            bin.push(i as u32);
+    for (i, r) in ranges.iter().enumerate() {
+        if let Some((b0, b1)) = *r {
+            for bin in &mut bins[b0 as usize..=b1 as usize] {
+                bin.push(i as u32);
+            }
         }
     }
 
-    eprintln!("bin {:?}", t0.elapsed());
     // Rasterise bands of image rows in parallel; each band owns its samples.
     let mut image = Image::new(w, h);
     let mut coverage = vec![0.0f32; w * h];
@@ -157,10 +153,12 @@ pub fn render_with(
         .zip(coverage.par_chunks_mut(w * BAND))
         .enumerate()
         .for_each(|(band, (pixels, cov))| {
+            let tris = bins[band]
+                .iter()
+                .flat_map(|&i| setup.triangle(mesh.indices[i as usize]));
             let rows = pixels.len() / w;
             raster_band(
-                &tris,
-                &bins[band],
+                tris,
                 band * BAND,
                 rows,
                 w,
@@ -171,7 +169,6 @@ pub fn render_with(
                 cov,
             );
         });
-    eprintln!("raster {:?}", t0.elapsed());
     Rendered { image, coverage }
 }
 
@@ -191,48 +188,97 @@ struct ScreenTri {
     ymax: f32,
 }
 
-/// Clip one camera-space triangle at the near plane, project it and emit 0, 1 or 2 screen
-/// triangles.
-fn setup_triangle(
-    v: [(Vec3, Vec3); 3],
-    frame: &CameraFrame,
+/// Everything needed to turn mesh triangles into screen triangles.
+struct Setup<'a> {
+    /// Camera-space vertex positions (x right, y up, z forward).
+    cam: &'a [Vec3],
+    radiance: &'a [Vec3],
+    frame: CameraFrame,
+    /// Samples per pixel along each axis.
     scale: f32,
     near: f32,
-) -> [Option<ScreenTri>; 2] {
-    let project = |(p, c): (Vec3, Vec3)| {
-        let sx = p.x / (p.z * frame.tan_half_x);
-        let sy = p.y / (p.z * frame.tan_half_y);
-        let x = (sx + 1.0) * 0.5 * frame.width as f32 * scale;
-        let y = (1.0 - sy) * 0.5 * frame.height as f32 * scale;
+}
+
+impl Setup<'_> {
+    /// Sample-grid coordinates, `1/z` and radiance over `z` of a camera-space point.
+    #[inline]
+    fn project(&self, (p, c): (Vec3, Vec3)) -> (f32, f32, f32, Vec3) {
+        let f = &self.frame;
+        let sx = p.x / (p.z * f.tan_half_x);
+        let sy = p.y / (p.z * f.tan_half_y);
+        let x = (sx + 1.0) * 0.5 * f.width as f32 * self.scale;
+        let y = (1.0 - sy) * 0.5 * f.height as f32 * self.scale;
         (x, y, 1.0 / p.z, c / p.z)
-    };
-    // Common case: entirely in front of the near plane.
-    if v.iter().all(|(p, _)| p.z >= near) {
-        return [make_tri(v.map(project)), None];
     }
-    // Sutherland-Hodgman against z >= near; attributes interpolate linearly in camera space.
-    let mut poly: [(Vec3, Vec3); 4] = [(Vec3::Z, Vec3::ZERO); 4];
-    let mut n = 0;
-    for i in 0..3 {
-        let (a, b) = (v[i], v[(i + 1) % 3]);
-        let (ina, inb) = (a.0.z >= near, b.0.z >= near);
-        if ina {
-            poly[n] = a;
-            n += 1;
+
+    /// First and last band of `band` image rows that triangle `tri` may cover; `None` when it
+    /// is off screen. Triangles crossing the near plane conservatively span every band.
+    fn band_range(&self, tri: [u32; 3], w: usize, h: usize, band: usize) -> Option<(u32, u32)> {
+        let last = (h.div_ceil(band) - 1) as u32;
+        let p = tri.map(|i| self.cam[i as usize]);
+        if p.iter().all(|q| q.z < self.near) {
+            return None;
         }
-        if ina != inb {
-            let t = (near - a.0.z) / (b.0.z - a.0.z);
-            poly[n] = (a.0.lerp(b.0, t), a.1.lerp(b.1, t));
-            poly[n].0.z = near;
-            n += 1;
+        if p.iter().any(|q| q.z < self.near) {
+            return Some((0, last));
         }
+        let s = p.map(|q| self.project((q, Vec3::ZERO)));
+        let (xmin, xmax) = (
+            s[0].0.min(s[1].0).min(s[2].0),
+            s[0].0.max(s[1].0).max(s[2].0),
+        );
+        let (ymin, ymax) = (
+            s[0].1.min(s[1].1).min(s[2].1),
+            s[0].1.max(s[1].1).max(s[2].1),
+        );
+        let (sw, sh) = (w as f32 * self.scale, h as f32 * self.scale);
+        if !(xmax >= 0.0 && xmin <= sw && ymax >= 0.0 && ymin <= sh) {
+            return None; // off screen, or NaN
+        }
+        let rows = band as f32 * self.scale;
+        let b0 = ((ymin.max(0.0) / rows) as u32).min(last);
+        let b1 = ((ymax.min(sh) / rows) as u32).min(last);
+        Some((b0, b1))
     }
-    // At most 4 vertices after clipping one plane: a fan of at most 2 triangles.
-    let p = poly.map(project);
-    match n {
-        3 => [make_tri([p[0], p[1], p[2]]), None],
-        4 => [make_tri([p[0], p[1], p[2]]), make_tri([p[0], p[2], p[3]])],
-        _ => [None, None],
+
+    /// Clip mesh triangle `tri` at the near plane, project it and emit 0, 1 or 2 screen
+    /// triangles.
+    fn triangle(&self, tri: [u32; 3]) -> impl Iterator<Item = ScreenTri> {
+        let v = tri.map(|i| (self.cam[i as usize], self.radiance[i as usize]));
+        // Common case: entirely in front of the near plane.
+        let out = if v.iter().all(|(p, _)| p.z >= self.near) {
+            [make_tri(v.map(|q| self.project(q))), None]
+        } else {
+            self.clipped(v)
+        };
+        out.into_iter().flatten()
+    }
+
+    /// Sutherland-Hodgman against `z >= near`; attributes interpolate linearly in camera
+    /// space. At most 4 vertices remain: a fan of at most 2 triangles.
+    fn clipped(&self, v: [(Vec3, Vec3); 3]) -> [Option<ScreenTri>; 2] {
+        let mut poly: [(Vec3, Vec3); 4] = [(Vec3::Z, Vec3::ZERO); 4];
+        let mut n = 0;
+        for i in 0..3 {
+            let (a, b) = (v[i], v[(i + 1) % 3]);
+            let (ina, inb) = (a.0.z >= self.near, b.0.z >= self.near);
+            if ina {
+                poly[n] = a;
+                n += 1;
+            }
+            if ina != inb {
+                let t = (self.near - a.0.z) / (b.0.z - a.0.z);
+                poly[n] = (a.0.lerp(b.0, t), a.1.lerp(b.1, t));
+                poly[n].0.z = self.near;
+                n += 1;
+            }
+        }
+        let p = poly.map(|q| self.project(q));
+        match n {
+            3 => [make_tri([p[0], p[1], p[2]]), None],
+            4 => [make_tri([p[0], p[1], p[2]]), make_tri([p[0], p[2], p[3]])],
+            _ => [None, None],
+        }
     }
 }
 
@@ -272,11 +318,10 @@ fn edge(ax: f32, ay: f32, bx: f32, by: f32, px: f32, py: f32) -> Option<f32> {
 }
 
 /// Render image rows `[row0, row0 + rows)` into `pixels` / `cov` (that band's slices), drawing
-/// the triangles `tris[bin[..]]` in order.
+/// `tris` in order.
 #[allow(clippy::too_many_arguments)]
 fn raster_band(
-    tris: &[ScreenTri],
-    bin: &[u32],
+    tris: impl Iterator<Item = ScreenTri>,
     row0: usize,
     rows: usize,
     w: usize,
@@ -293,7 +338,7 @@ fn raster_band(
     let mut color = vec![Vec3::ZERO; sw * sh];
     let (band_lo, band_hi) = (s0 as f32, (s0 + sh) as f32);
 
-    for t in bin.iter().map(|&i| &tris[i as usize]) {
+    for t in tris {
         if t.ymax < band_lo || t.ymin > band_hi {
             continue;
         }
@@ -696,21 +741,36 @@ mod tests {
         }
     }
 }
+/// Timing for the report: `cargo test --release -p relight-render raster_timing -- --ignored
+/// --nocapture`.
 #[cfg(test)]
 mod perf {
     use super::*;
+
     #[test]
     #[ignore]
     fn raster_timing() {
         let mut mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 500, 1000);
-        mesh.append(&relight_scene::shapes::ground_plane(Vec3::new(0.0, -1.0, 0.0), 10.0, 200), 0);
+        let plane = relight_scene::shapes::ground_plane(Vec3::new(0.0, -1.0, 0.0), 10.0, 200);
+        mesh.append(&plane, 0);
         let rad = vec![Vec3::splat(0.5); mesh.vertex_count()];
-        let camera = Camera { origin: [0.0, 1.0, 4.0], target: [0.0; 3], up: [0.0, 1.0, 0.0], fov_deg: 50.0, width: 1024, height: 768 };
+        let camera = Camera {
+            origin: [0.0, 1.0, 4.0],
+            target: [0.0; 3],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 50.0,
+            width: 1024,
+            height: 768,
+        };
         for ss in [1, 4] {
             let t0 = std::time::Instant::now();
-            let r = render_with(&mesh, &camera, &rad, None, &RasterOptions { supersample: ss });
-            println!("{} tris, 1024x768 ss {ss}: {:.1} ms", mesh.triangle_count(), t0.elapsed().as_secs_f64() * 1e3);
-            std::hint::black_box(r);
+            let opts = RasterOptions { supersample: ss };
+            std::hint::black_box(render_with(&mesh, &camera, &rad, None, &opts));
+            let ms = t0.elapsed().as_secs_f64() * 1e3;
+            println!(
+                "{} triangles, 1024x768, supersample {ss}: {ms:.1} ms",
+                mesh.triangle_count()
+            );
         }
     }
 }

@@ -314,3 +314,45 @@ mod tests {
         }
     }
 }
+#[cfg(test)]
+mod kbench {
+    use super::*;
+    use glam::Vec4;
+    fn dot_v4(t: &[f32], lr: &[Vec4], lg: &[Vec4], lb: &[Vec4], tail: &[Vec3A]) -> Vec3A {
+        let (mut ar, mut ag, mut ab) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
+        let mut tc = t.chunks_exact(4);
+        for (((tt, r), g), b) in (&mut tc).zip(lr).zip(lg).zip(lb) {
+            let t4 = Vec4::from_slice(tt);
+            ar += t4 * *r; ag += t4 * *g; ab += t4 * *b;
+        }
+        let mut acc = Vec3A::new(ar.element_sum(), ag.element_sum(), ab.element_sum());
+        for (&ti, &li) in tc.remainder().iter().zip(tail) { acc += li * ti; }
+        acc
+    }
+    #[test]
+    #[ignore]
+    fn kernels() {
+        for n2 in [9usize, 25, 100] {
+        let nv = 20_000;
+        let data: Vec<f32> = (0..nv*n2).map(|i| (i % 97) as f32 * 0.01).collect();
+        let light: Vec<Vec3> = (0..n2).map(|i| Vec3::new(1.0, 0.5, 0.2) / (1+i) as f32).collect();
+        let la: Vec<Vec3A> = light.iter().map(|&l| l.into()).collect();
+        let full = n2 / 4;
+        let plane = |c: usize| (0..full).map(|k| Vec4::new(light[4*k][c], light[4*k+1][c], light[4*k+2][c], light[4*k+3][c])).collect::<Vec<_>>();
+        let (lr, lg, lb) = (plane(0), plane(1), plane(2));
+        let tail = &la[4*full..];
+        let alb = vec![Vec3::splat(0.5); nv];
+        let mut out = vec![Vec3::ZERO; nv];
+        let mut m = [1e9f64; 2];
+        for _ in 0..100 {
+            let t0 = Instant::now();
+            for (k, (o, t)) in out.iter_mut().zip(data.chunks_exact(n2)).enumerate() { *o = alb[k] * Vec3::from(dot_mono(t, &la)); }
+            m[0] = m[0].min(t0.elapsed().as_secs_f64()*1e9/nv as f64);
+            let t0 = Instant::now();
+            for (k, (o, t)) in out.iter_mut().zip(data.chunks_exact(n2)).enumerate() { *o = alb[k] * Vec3::from(dot_v4(t, &lr, &lg, &lb, tail)); }
+            m[1] = m[1].min(t0.elapsed().as_secs_f64()*1e9/nv as f64);
+        }
+        println!("n2 {n2}: ns/vertex single thread: vec3a4 {:.1} vec4planes {:.1}", m[0], m[1]);
+        }
+    }
+}

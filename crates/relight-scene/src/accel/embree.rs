@@ -455,7 +455,10 @@ mod tests {
         let g = unsafe { sys::rtcNewGeometry(device.raw, 999) };
         assert!(g.is_null());
         let err = device.check("rtcNewGeometry").unwrap_err();
-        assert!(err.contains("rtcNewGeometry") && err.contains("Embree"), "{err}");
+        assert!(
+            err.contains("rtcNewGeometry") && err.contains("Embree"),
+            "{err}"
+        );
         // The error is consumed: the device is usable again.
         device.check("after the error").unwrap();
     }
@@ -464,6 +467,9 @@ mod tests {
     fn robust_and_default_scenes_report_names() {
         let m = crate::accel::bvh::tests::sphere(6, 12);
         assert_eq!(EmbreeScene::build(&m).unwrap().name(), "embree3");
-        assert_eq!(EmbreeScene::build_robust(&m).unwrap().name(), "embree3-robust");
+        assert_eq!(
+            EmbreeScene::build_robust(&m).unwrap().name(),
+            "embree3-robust"
+        );
     }
 }
