@@ -285,7 +285,7 @@ impl Bundle {
         meta.insert("header_crc32".into(), Value::from("00000000"));
         header.insert("__metadata__".into(), Value::Object(meta));
         let mut h = serde_json::to_string(&Value::Object(header)).expect("JSON of strings");
-        while h.len() % 8 != 0 {
+        while !h.len().is_multiple_of(8) {
             h.push(' ');
         }
         // Fill in the header checksum over the header with the placeholder in place.

@@ -6,16 +6,17 @@
 //! environment's RGB SH coefficients (`relight_sphere::sh::project_env`), already rotated into
 //! the world frame (`ShRotation`); only the first `n^2` are used.
 //!
-//! The kernel streams the transfer array once, front to back (vertex-major, coefficient-major,
-//! channel innermost), with the light held in L1 as 16-byte `Vec3A` values: each coefficient
-//! is one SIMD multiply-add of its transfer (broadcast, or the RGB triple) by the light, into
-//! four independent accumulators to hide add latency. On one core this costs about 12 ns per
-//! order-5 vertex, below the ~15 ns per vertex that its 124 bytes take at 8 GB/s, so a frame is
-//! memory-bandwidth bound: [`bench_relight`] measures it against a STREAM-like
+//! The kernels stream the transfer array once, front to back (vertex-major, coefficient-major,
+//! channel innermost), with the light held in L1 in SIMD-ready form: for single-channel
+//! transfer, per-channel planes of 4 coefficients (one 4-wide multiply-add per channel per 4
+//! coefficients, two accumulators per channel); for RGB transfer, one `Vec3A` per coefficient
+//! (one multiply-add of the RGB triple, four accumulators to hide add latency). On one core
+//! an order-5 single-channel vertex costs about 10 ns, below the ~12 ns its 124 bytes take at
+//! 10 GB/s, so a frame is memory-bandwidth bound: [`bench_relight`] measures it against a STREAM-like
 //! copy (McCalpin's STREAM "Copy" kernel, bytes counted as read + written) on the same
 //! machine in the same run.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use relight_bake::sh::{ShTransfer, ShTransferKind};
 use relight_sphere::sh::sh_count;
@@ -48,10 +49,9 @@ pub fn vertex_radiance(
         light.len()
     );
     debug_assert_eq!(transfer.data.len(), transfer.vertex_count * stride);
-    // 16-byte SIMD copies of the light, exactly n^2 of them (the kernels rely on it).
-    let light: Vec<Vec3A> = light[..n2].iter().map(|&l| l.into()).collect();
     match transfer.channels {
         1 => {
+            let light = MonoLight::new(&light[..n2]);
             if let Some(a) = albedo_per_vertex {
                 assert_eq!(a.len(), transfer.vertex_count, "one albedo per vertex");
             }
@@ -61,11 +61,13 @@ pub fn vertex_radiance(
                 .for_each(|(ci, (out, data))| {
                     for (k, (o, t)) in out.iter_mut().zip(data.chunks_exact(stride)).enumerate() {
                         let rho = albedo_per_vertex.map_or(Vec3::ONE, |a| a[ci * CHUNK + k]);
-                        *o = rho * Vec3::from(dot_mono(t, &light));
+                        *o = rho * Vec3::from(light.dot(t));
                     }
                 });
         }
         _ => {
+            // 16-byte SIMD copies of the light, exactly n^2 of them (the kernel relies on it).
+            let light: Vec<Vec3A> = light[..n2].iter().map(|&l| l.into()).collect();
             out.par_chunks_mut(CHUNK)
                 .zip(transfer.data.par_chunks(CHUNK * stride))
                 .for_each(|(out, data)| {
@@ -88,23 +90,69 @@ pub fn shade(
     out
 }
 
-/// Independent accumulators per kernel: enough to hide the latency of SIMD adds.
+/// Independent accumulators of the RGB kernel: enough to hide the latency of SIMD adds.
 const ACC: usize = 4;
 
-/// `sum_i t_i L_i` for one vertex's single-channel transfer `t` (`light.len() == t.len()`).
-#[inline]
-fn dot_mono(t: &[f32], light: &[Vec3A]) -> Vec3A {
-    let mut acc = [Vec3A::ZERO; ACC];
-    let (mut tc, mut lc) = (t.chunks_exact(ACC), light.chunks_exact(ACC));
-    for (tt, ll) in (&mut tc).zip(&mut lc) {
-        for j in 0..ACC {
-            acc[j] += ll[j] * tt[j];
+/// The light for single-channel transfer: channel planes of 4 coefficients each (`r[k]` holds
+/// coefficients `4k..4k+3` of red), and the last `n^2 mod 4` coefficients as RGB.
+struct MonoLight {
+    r: Vec<Vec4>,
+    g: Vec<Vec4>,
+    b: Vec<Vec4>,
+    tail: Vec<Vec3A>,
+}
+
+impl MonoLight {
+    fn new(light: &[Vec3]) -> Self {
+        let quads = light.len() / 4;
+        let plane = |c: usize| -> Vec<Vec4> {
+            (0..quads)
+                .map(|k| Vec4::from_array(std::array::from_fn(|j| light[4 * k + j][c])))
+                .collect()
+        };
+        let tail = light[4 * quads..].iter().map(|&l| l.into()).collect();
+        MonoLight {
+            r: plane(0),
+            g: plane(1),
+            b: plane(2),
+            tail,
         }
     }
-    for (&ti, &li) in tc.remainder().iter().zip(lc.remainder()) {
-        acc[0] += li * ti;
+
+    /// `sum_i t_i L_i` for one vertex's single-channel transfer `t` (as long as the light):
+    /// 4 coefficients per SIMD multiply-add, two accumulators per channel.
+    #[inline]
+    fn dot(&self, t: &[f32]) -> Vec3A {
+        let (mut ar, mut ag, mut ab) = ([Vec4::ZERO; 2], [Vec4::ZERO; 2], [Vec4::ZERO; 2]);
+        let mut tc = t.chunks_exact(8);
+        let (mut rc, mut gc, mut bc) = (
+            self.r.chunks_exact(2),
+            self.g.chunks_exact(2),
+            self.b.chunks_exact(2),
+        );
+        for (((tt, r), g), b) in (&mut tc).zip(&mut rc).zip(&mut gc).zip(&mut bc) {
+            for j in 0..2 {
+                let t4 = Vec4::from_slice(&tt[4 * j..4 * j + 4]);
+                ar[j] += t4 * r[j];
+                ag[j] += t4 * g[j];
+                ab[j] += t4 * b[j];
+            }
+        }
+        // An odd quad left over, then fewer than 4 coefficients.
+        let rem = tc.remainder();
+        if let ([r], [g], [b]) = (rc.remainder(), gc.remainder(), bc.remainder()) {
+            let t4 = Vec4::from_slice(&rem[..4]);
+            ar[0] += t4 * *r;
+            ag[0] += t4 * *g;
+            ab[0] += t4 * *b;
+        }
+        let (r, g, b) = (ar[0] + ar[1], ag[0] + ag[1], ab[0] + ab[1]);
+        let mut acc = Vec3A::new(r.element_sum(), g.element_sum(), b.element_sum());
+        for (&ti, &li) in rem[rem.len() / 4 * 4..].iter().zip(&self.tail) {
+            acc += li * ti;
+        }
+        acc
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
 
 /// `sum_i t_i,c L_i,c` for one vertex's interleaved RGB transfer `t`
@@ -311,48 +359,6 @@ mod tests {
                 b.ratio_to_bandwidth_bound,
                 b.threads
             );
-        }
-    }
-}
-#[cfg(test)]
-mod kbench {
-    use super::*;
-    use glam::Vec4;
-    fn dot_v4(t: &[f32], lr: &[Vec4], lg: &[Vec4], lb: &[Vec4], tail: &[Vec3A]) -> Vec3A {
-        let (mut ar, mut ag, mut ab) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
-        let mut tc = t.chunks_exact(4);
-        for (((tt, r), g), b) in (&mut tc).zip(lr).zip(lg).zip(lb) {
-            let t4 = Vec4::from_slice(tt);
-            ar += t4 * *r; ag += t4 * *g; ab += t4 * *b;
-        }
-        let mut acc = Vec3A::new(ar.element_sum(), ag.element_sum(), ab.element_sum());
-        for (&ti, &li) in tc.remainder().iter().zip(tail) { acc += li * ti; }
-        acc
-    }
-    #[test]
-    #[ignore]
-    fn kernels() {
-        for n2 in [9usize, 25, 100] {
-        let nv = 20_000;
-        let data: Vec<f32> = (0..nv*n2).map(|i| (i % 97) as f32 * 0.01).collect();
-        let light: Vec<Vec3> = (0..n2).map(|i| Vec3::new(1.0, 0.5, 0.2) / (1+i) as f32).collect();
-        let la: Vec<Vec3A> = light.iter().map(|&l| l.into()).collect();
-        let full = n2 / 4;
-        let plane = |c: usize| (0..full).map(|k| Vec4::new(light[4*k][c], light[4*k+1][c], light[4*k+2][c], light[4*k+3][c])).collect::<Vec<_>>();
-        let (lr, lg, lb) = (plane(0), plane(1), plane(2));
-        let tail = &la[4*full..];
-        let alb = vec![Vec3::splat(0.5); nv];
-        let mut out = vec![Vec3::ZERO; nv];
-        let mut m = [1e9f64; 2];
-        for _ in 0..100 {
-            let t0 = Instant::now();
-            for (k, (o, t)) in out.iter_mut().zip(data.chunks_exact(n2)).enumerate() { *o = alb[k] * Vec3::from(dot_mono(t, &la)); }
-            m[0] = m[0].min(t0.elapsed().as_secs_f64()*1e9/nv as f64);
-            let t0 = Instant::now();
-            for (k, (o, t)) in out.iter_mut().zip(data.chunks_exact(n2)).enumerate() { *o = alb[k] * Vec3::from(dot_v4(t, &lr, &lg, &lb, tail)); }
-            m[1] = m[1].min(t0.elapsed().as_secs_f64()*1e9/nv as f64);
-        }
-        println!("n2 {n2}: ns/vertex single thread: vec3a4 {:.1} vec4planes {:.1}", m[0], m[1]);
         }
     }
 }

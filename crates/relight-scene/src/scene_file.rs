@@ -229,7 +229,7 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
                     .bounds()
                     .ok_or_else(|| SceneError::malformed(file, "empty mesh"))?;
                 let h = hi.y - lo.y;
-                if !(h > 0.0) {
+                if h.is_nan() || h <= 0.0 {
                     return Err(SceneError::malformed(
                         file,
                         "mesh is flat in Y: cannot fit by height",

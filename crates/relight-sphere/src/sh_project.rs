@@ -171,7 +171,7 @@ fn tent_fourier(m: usize, width: usize) -> f64 {
     let d = 2.0 * PI / width as f64;
     if m == 0 {
         d
-    } else if m % width == 0 {
+    } else if m.is_multiple_of(width) {
         0.0
     } else {
         let s = PI * m as f64 / width as f64;
