@@ -6,8 +6,9 @@
 //!   and its centre is `(j + 0.5, i + 0.5)`.
 //! * Sampling: one sample at each pixel centre by default; with `supersample = n` an `n x n`
 //!   grid of sub-pixel centres `(j + (a + 0.5)/n, i + (b + 0.5)/n)` averaged with equal weights
-//!   (a box filter). Mitsuba's default `box` reconstruction filter integrates radiance over the
-//!   whole pixel, so silhouettes match a Mitsuba image only with supersampling (use 4).
+//!   (a box filter). The Mitsuba references (`tools/mitsuba_reference.py`) use a `box`
+//!   reconstruction filter, which averages radiance over the whole pixel, so silhouettes match
+//!   them only with supersampling (use 4).
 //! * Visibility: z-buffer on view depth (distance along the camera's forward axis), nearest
 //!   wins, ties go to the triangle that comes first in the mesh. No back-face culling: which
 //!   side of a one-sided surface is lit is already in the vertex radiance.
