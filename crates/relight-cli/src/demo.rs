@@ -33,13 +33,13 @@ pub struct Args {
     #[arg(long, default_value_t = 320)]
     pub width: u32,
     /// Path-tracer samples per pixel for the references.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 256)]
     pub spp: u32,
     /// SH order of the bake.
     #[arg(long, default_value_t = 6)]
     pub order: usize,
     /// Directions per vertex of the bake.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 1024)]
     pub samples: u32,
 }
 
@@ -193,7 +193,7 @@ pub fn run(a: Args) -> Result<()> {
         });
     }
     let sheet = a.out.join("contact_sheet.png");
-    write_contact_sheet(&sheet, &rows, &tm)?;
+    write_contact_sheet(&sheet, &rows, &tm, a.order, a.spp)?;
     let report = a.out.join("report.html");
     write_report(
         &report,
@@ -208,8 +208,8 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Rows of (PRT | reference | error heat map), 4-pixel gaps, dark grey background.
-fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap) -> Result<()> {
+/// Rows of (PRT | reference | error heat map), 4-pixel gaps, dark grey background, labelled.
+fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap, order: usize, spp: u32) -> Result<()> {
     let (w, h) = (rows[0].prt.width, rows[0].prt.height);
     let gap = 4;
     let (sw, sh) = (3 * w + 4 * gap, rows.len() * h + (rows.len() + 1) * gap);
@@ -220,8 +220,16 @@ fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap) -> Result<()> {
             tm.to_srgb8(&row.reference),
             compare::heatmap(&row.prt, &row.reference),
         ];
-        for (c, panel) in panels.iter().enumerate() {
+        let labels = [
+            format!("SH PRT ORDER {order}, SKY {:.0}°, {:.1} MS", row.rotate, row.relight_ms),
+            format!("PATH TRACED {spp} SPP, {:.1} S", row.reference_s),
+            format!("ERROR, REL. RMSE {:.1}%", 100.0 * row.metrics.rel_rmse),
+        ];
+        for (c, (panel, label)) in panels.iter().zip(&labels).enumerate() {
             let (x0, y0) = (gap + c * (w + gap), gap + r * (h + gap));
+            let mut panel = panel.clone();
+            let scale = if w >= 480 { 2 } else { 1 };
+            relight_render::text::draw_label(&mut panel, w, 3, 3, scale, label);
             for y in 0..h {
                 px[(y0 + y) * sw + x0..(y0 + y) * sw + x0 + w]
                     .copy_from_slice(&panel[y * w..(y + 1) * w]);

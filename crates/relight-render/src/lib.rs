@@ -9,6 +9,7 @@ pub mod mitsuba;
 pub mod pathtrace;
 pub mod raster;
 pub mod shade_sh;
+pub mod text;
 pub mod tonemap;
 
 pub use image::Image;
