@@ -41,27 +41,38 @@ pub trait SphericalBasis {
     /// Inner products `int L(w) B_i(w) dw` with the map's exact texel weights (f64
     /// accumulation). For an orthonormal basis these are the projection coefficients.
     fn project_env(&self, map: &EnvMap) -> Vec<Vec3> {
-        let n = self.coeff_count();
-        let mut acc = vec![[0f64; 3]; n];
-        let mut b = vec![0f32; n];
-        for t in map.texel_iter() {
-            self.eval_basis(t.dir, &mut b);
-            let w = t.solid_angle as f64;
-            let v = [
-                t.value.x as f64 * w,
-                t.value.y as f64 * w,
-                t.value.z as f64 * w,
-            ];
-            for (a, &y) in acc.iter_mut().zip(&b) {
-                a[0] += v[0] * y as f64;
-                a[1] += v[1] * y as f64;
-                a[2] += v[2] * y as f64;
-            }
-        }
-        acc.iter()
-            .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
-            .collect()
+        project_point_rule(map, self.coeff_count(), |d, o| self.eval_basis(d, o), |t| t.value)
     }
+}
+
+/// The point-rule projection shared by every basis: `sum_i value(t_i) B(dir_i) w_i` over the
+/// texels `t_i` of `grid` with their quadrature weights `w_i` ([`EnvMap::texel`]), accumulated
+/// in f64; texels whose value is zero are skipped. `eval_basis(dir, out)` fills `n` values.
+pub fn project_point_rule(
+    grid: &EnvMap,
+    n: usize,
+    eval_basis: impl Fn(Vec3, &mut [f32]),
+    value: impl Fn(&crate::envmap::TexelInfo) -> Vec3,
+) -> Vec<Vec3> {
+    let mut acc = vec![[0f64; 3]; n];
+    let mut b = vec![0f32; n];
+    for t in grid.texel_iter() {
+        let v = value(&t);
+        if v == Vec3::ZERO {
+            continue;
+        }
+        eval_basis(t.dir, &mut b);
+        let w = t.solid_angle as f64;
+        let v = [v.x as f64 * w, v.y as f64 * w, v.z as f64 * w];
+        for (a, &y) in acc.iter_mut().zip(&b) {
+            a[0] += v[0] * y as f64;
+            a[1] += v[1] * y as f64;
+            a[2] += v[2] * y as f64;
+        }
+    }
+    acc.iter()
+        .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
+        .collect()
 }
 
 /// Real spherical harmonics of a given order (conventions of [`crate::sh`]).

@@ -19,6 +19,7 @@
 //! Coefficients of radiance `L` are `L_lm = int L(w) Y_lm(w) dw`; reconstruction is
 //! `L(w) ~ sum L_lm Y_lm(w)`.
 
+use crate::basis::project_point_rule;
 use crate::envmap::EnvMap;
 use crate::Vec3;
 use std::f64::consts::PI;
@@ -254,53 +255,14 @@ pub fn project_env(map: &EnvMap, order: usize) -> Vec<Vec3> {
 /// Debug builds assert `order <= MAX_ORDER`.
 pub fn project_env_point_rule(map: &EnvMap, order: usize) -> Vec<Vec3> {
     debug_assert!(order <= MAX_ORDER);
-    let n = sh_count(order);
-    let mut acc = vec![[0f64; 3]; n];
-    let mut basis = vec![0f32; n];
-    for t in map.texel_iter() {
-        if t.value == Vec3::ZERO {
-            continue;
-        }
-        eval_sh(order, t.dir, &mut basis);
-        let w = t.solid_angle as f64;
-        let v = [
-            t.value.x as f64 * w,
-            t.value.y as f64 * w,
-            t.value.z as f64 * w,
-        ];
-        for (a, &y) in acc.iter_mut().zip(&basis) {
-            let y = y as f64;
-            a[0] += v[0] * y;
-            a[1] += v[1] * y;
-            a[2] += v[2] * y;
-        }
-    }
-    acc.iter()
-        .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
-        .collect()
+    project_point_rule(map, sh_count(order), |d, o| eval_sh(order, d, o), |t| t.value)
 }
 
 /// Projects a function of direction (e.g. an analytic radiance) with the quadrature of `map`'s
 /// texels (values of `map` are ignored; only its directions and weights are used).
 pub fn project_fn(grid: &EnvMap, order: usize, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
     debug_assert!(order <= MAX_ORDER);
-    let n = sh_count(order);
-    let mut acc = vec![[0f64; 3]; n];
-    let mut basis = vec![0f32; n];
-    for t in grid.texel_iter() {
-        eval_sh(order, t.dir, &mut basis);
-        let (fv, w) = (f(t.dir), t.solid_angle as f64);
-        let v = [fv.x as f64 * w, fv.y as f64 * w, fv.z as f64 * w];
-        for (a, &y) in acc.iter_mut().zip(&basis) {
-            let y = y as f64;
-            a[0] += v[0] * y;
-            a[1] += v[1] * y;
-            a[2] += v[2] * y;
-        }
-    }
-    acc.iter()
-        .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
-        .collect()
+    project_point_rule(grid, sh_count(order), |d, o| eval_sh(order, d, o), |t| f(t.dir))
 }
 
 /// Reconstruction `sum_lm c_lm Y_lm(dir)`; the order is `sqrt(coeffs.len())`.
