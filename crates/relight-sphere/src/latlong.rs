@@ -118,9 +118,58 @@ pub fn bilinear(width: usize, height: usize, dir: Vec3) -> [(usize, f32); 4] {
     ]
 }
 
+/// The four grid neighbours of texel `(col, row)`: left and right (wrapping in azimuth), then
+/// up and down. Across a pole (up from row 0, down from row `H - 1`) the neighbour is the next
+/// row at the opposite azimuth, `col + W/2`, since every texel of a pole row sits at the pole
+/// itself. Entries are `(col, row)`.
+///
+/// # Panics
+/// Debug builds assert `height >= 2` and that the texel is inside the grid.
+pub fn texel_neighbours(width: usize, height: usize, col: usize, row: usize) -> [(usize, usize); 4] {
+    debug_assert!(height >= 2 && col < width && row < height);
+    let left = (col + width - 1) % width;
+    let right = (col + 1) % width;
+    let opposite = (col + width / 2) % width;
+    let up = if row == 0 { (opposite, 1) } else { (col, row - 1) };
+    let down = if row + 1 == height { (opposite, height - 2) } else { (col, row + 1) };
+    [(left, row), (right, row), up, down]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn neighbours_are_one_grid_step_away() {
+        let (w, h) = (16, 9);
+        let dtheta = std::f32::consts::PI / (h - 1) as f32;
+        let dphi = std::f32::consts::TAU / w as f32;
+        for row in 0..h {
+            for col in 0..w {
+                let d = texel_dir(w, h, col, row);
+                let n = texel_neighbours(w, h, col, row);
+                for (k, &(c, r)) in n.iter().enumerate() {
+                    assert!(c < w && r < h);
+                    let angle = d.dot(texel_dir(w, h, c, r)).clamp(-1.0, 1.0).acos();
+                    // Left/right: at most the azimuth step (less away from the equator);
+                    // up/down: exactly the row step (also across a pole).
+                    let limit = if k < 2 { dphi } else { dtheta };
+                    assert!(angle <= limit + 1e-5, "({col},{row}) -> ({c},{r}): {angle}");
+                    if k >= 2 {
+                        assert!((angle - dtheta).abs() < 1e-5);
+                    }
+                }
+                // Interior left/right/up/down relations are symmetric.
+                if row > 0 && row + 1 < h {
+                    for &(c, r) in &n {
+                        if r > 0 && r + 1 < h {
+                            assert!(texel_neighbours(w, h, c, r).contains(&(col, row)));
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn mitsuba_placement() {
