@@ -223,6 +223,10 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             material,
         } => {
             let loaded = io::load_mesh(file)?;
+            // Loading carries on past recoverable problems; tell the user about each.
+            for w in &loaded.warnings {
+                eprintln!("warning: {w}");
+            }
             let mut mesh = loaded.mesh;
             if let Some(f) = fit {
                 let (lo, hi) = mesh

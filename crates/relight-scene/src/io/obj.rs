@@ -101,7 +101,7 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
                 let name = line["mtllib".len()..].trim();
                 let mtl = path.parent().unwrap_or(Path::new(".")).join(name);
                 match std::fs::read(&mtl) {
-                    Ok(bytes) => library.extend(parse_mtl(&mtl, &String::from_utf8_lossy(&bytes))?),
+                    Ok(bytes) => library.extend(parse_mtl(&mtl, &String::from_utf8_lossy(&bytes), &mut warnings)?),
                     Err(e) => warnings.push(format!(
                         "{}: line {ln}: material library {}: {e}; using the default material",
                         path.display(),
@@ -195,20 +195,37 @@ fn resolve(tok: Option<&str>, count: usize, what: &str) -> Result<Option<u32>, S
 }
 
 /// Parse an MTL library into named materials.
-fn parse_mtl(path: &Path, text: &str) -> Result<HashMap<String, Material>, SceneError> {
+fn parse_mtl(
+    path: &Path,
+    text: &str,
+    warnings: &mut Vec<String>,
+) -> Result<HashMap<String, Material>, SceneError> {
     struct Raw {
         kd: Vec3,
         ks: Vec3,
         ns: f32,
         line: usize,
     }
-    // Build and check a material; an invalid one (e.g. Kd + Ks > 1) is an error at its
-    // `newmtl` line rather than a silent rescale.
-    let finish = |name: &str, r: &Raw| {
+    // Build and check a material; an invalid one (a negative or > 1 coefficient, NaN) is an
+    // error at its `newmtl` line. Kd + Ks above 1 (common in exported files) is rescaled to
+    // conserve energy, with a warning naming the line.
+    let mut finish = |name: &str, r: &Raw| {
         let m = if r.ks.max_element() > 0.0 && r.ns > 0.0 {
+            let sum = (r.kd + r.ks).max_element();
+            let k = if sum > 1.0 && r.kd.max_element() <= 1.0 && r.ks.max_element() <= 1.0 {
+                warnings.push(format!(
+                    "{}: line {}: material '{name}': Kd + Ks = {sum} exceeds 1; both scaled by {:.4} to conserve energy",
+                    path.display(),
+                    r.line,
+                    1.0 / sum
+                ));
+                1.0 / sum
+            } else {
+                1.0
+            };
             Material::BlinnPhong {
-                diffuse: r.kd,
-                specular: r.ks,
+                diffuse: r.kd * k,
+                specular: r.ks * k,
                 exponent: r.ns,
             }
         } else {
@@ -313,9 +330,24 @@ mod tests {
     #[test]
     fn invalid_mtl_material_is_an_error_at_its_line() {
         let dir = temp_dir("objmtlbad");
-        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 0.9 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
+        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 1.5 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
         let e = load_mesh(&write(&dir, "q.obj", &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"))).unwrap_err();
         assert!(e.to_string().contains("m.mtl: line 2: material 'hot'"), "{e}");
+    }
+
+    #[test]
+    fn mtl_above_unit_energy_is_rescaled_with_a_warning() {
+        let dir = temp_dir("objmtlhot");
+        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 0.9 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
+        let m = load_mesh(&write(&dir, "q.obj", &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"))).unwrap();
+        assert!(m.warnings.iter().any(|w| w.contains("m.mtl: line 2") && w.contains("exceeds 1")), "{:?}", m.warnings);
+        match m.materials[0] {
+            Material::BlinnPhong { diffuse, specular, .. } => {
+                assert!(((diffuse + specular).max_element() - 1.0).abs() < 1e-6);
+                assert!((diffuse.x / specular.x - 0.9 / 0.5).abs() < 1e-5);
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]
