@@ -51,6 +51,10 @@ pub enum ShapeDesc {
         /// Optional placement.
         #[serde(default)]
         fit: Option<Fit>,
+        /// Weld vertices closer than this (in the file's units) and recompute smooth normals
+        /// (for meshes made of unwelded patches, like the Utah teapot).
+        #[serde(default)]
+        weld: Option<f32>,
         /// Override of the file's materials.
         #[serde(default)]
         material: Option<Material>,
@@ -220,6 +224,7 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
         ShapeDesc::Mesh {
             file,
             fit,
+            weld,
             material,
         } => {
             let loaded = io::load_mesh(file)?;
@@ -228,6 +233,18 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
                 eprintln!("warning: {w}");
             }
             let mut mesh = loaded.mesh;
+            if let Some(eps) = *weld {
+                if !(eps.is_finite() && eps > 0.0) {
+                    return Err(SceneError::malformed(
+                        file,
+                        format!("weld distance {eps} must be > 0"),
+                    ));
+                }
+                mesh = meshops::weld(&mesh, eps);
+                meshops::drop_degenerate(&mut mesh);
+                meshops::remove_unused_vertices(&mut mesh);
+                mesh.normals = meshops::smooth_normals(&mesh, meshops::NormalWeighting::Angle);
+            }
             if let Some(f) = fit {
                 let (lo, hi) = mesh
                     .bounds()
