@@ -101,9 +101,193 @@ pub fn render_with(
         mesh.vertex_count(),
         "one radiance value per vertex is required"
     );
-    assert!(opts.supersample >= 1, "supersample must be at least 1");
     let frame = camera.frame();
     let ss = opts.supersample as usize;
+    let px = rasterise(
+        mesh,
+        &frame,
+        Corner::Vertex(vertex_radiance),
+        opts.supersample,
+        |row0, rows, s: &Samples, out: &mut [(Vec3, f32)]| {
+            resolve(row0, rows, ss, &frame, background, s, out, |k| s.attr[k])
+        },
+    );
+    split(px, frame.width as usize, frame.height as usize)
+}
+
+/// One visible surface sample of a G-buffer: what a deferred shader needs.
+///
+/// All vertex attributes are interpolated perspective-correctly (linear in world space over
+/// the triangle, see the module docs), so any per-vertex value is
+/// [`Fragment::interpolate`]d exactly when it is linear over the triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fragment {
+    /// Mesh triangle index.
+    pub tri: u32,
+    /// Weights of the triangle's three corners (`mesh.indices[tri]` order), summing to 1.
+    pub bary: [f32; 3],
+    /// World position.
+    pub position: Vec3,
+    /// Interpolated vertex normal, normalised (the geometric normal if it vanishes).
+    pub shading_normal: Vec3,
+    /// Unit geometric normal of the triangle (its winding's side; zero if degenerate).
+    pub geometric_normal: Vec3,
+}
+
+impl Fragment {
+    /// Interpolate a per-vertex value (PRT radiance, albedo, ...) at this fragment.
+    ///
+    /// # Panics
+    /// If `values` is shorter than the mesh's vertex count.
+    #[inline]
+    pub fn interpolate(&self, mesh: &TriMesh, values: &[Vec3]) -> Vec3 {
+        let [a, b, c] = mesh.indices[self.tri as usize];
+        values[a as usize] * self.bary[0]
+            + values[b as usize] * self.bary[1]
+            + values[c as usize] * self.bary[2]
+    }
+
+    /// The fragment of triangle `tri` at perspective-correct corner weights `bary`.
+    #[inline]
+    fn new(mesh: &TriMesh, tri: u32, bary: Vec3) -> Fragment {
+        let bary = (bary / bary.element_sum()).to_array();
+        let [a, b, c] = mesh.indices[tri as usize].map(|i| i as usize);
+        let p = &mesh.positions;
+        let ng = mesh.geometric_normal(tri as usize);
+        let n = mesh.normals[a] * bary[0] + mesh.normals[b] * bary[1] + mesh.normals[c] * bary[2];
+        let n = n.normalize_or_zero();
+        Fragment {
+            tri,
+            bary,
+            position: p[a] * bary[0] + p[b] * bary[1] + p[c] * bary[2],
+            shading_normal: if n == Vec3::ZERO { ng } else { n },
+            geometric_normal: ng,
+        }
+    }
+}
+
+/// The visible fragment of every sample: `width x height` samples, row-major (the image
+/// size times `supersample` along each axis), `None` where no triangle covers the sample.
+#[derive(Clone, Debug)]
+pub struct GBuffer {
+    /// Samples per row (image width times `supersample`).
+    pub width: usize,
+    /// Sample rows (image height times `supersample`).
+    pub height: usize,
+    /// Samples per pixel along each axis.
+    pub supersample: u32,
+    /// Row-major samples.
+    pub fragments: Vec<Option<Fragment>>,
+}
+
+/// Rasterise `mesh` into a G-buffer (a visibility buffer of [`Fragment`]s), one entry per
+/// sample, with the same sample positions, coverage rule and depth test as [`render_with`].
+///
+/// # Panics
+/// If `opts.supersample == 0` or the camera's image is empty.
+pub fn gbuffer(mesh: &TriMesh, camera: &Camera, opts: &RasterOptions) -> GBuffer {
+    let frame = camera.frame();
+    let ss = opts.supersample as usize;
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    // One "pixel" of `rasterise` output holds that pixel's `ss x ss` samples, row by row.
+    let px = rasterise(
+        mesh,
+        &frame,
+        Corner::Barycentric,
+        opts.supersample,
+        |_, rows, s: &Samples, out: &mut [Vec<Option<Fragment>>]| {
+            for r in 0..rows {
+                for x in 0..w {
+                    out[r * w + x] = (0..ss * ss)
+                        .map(|q| {
+                            let k = (r * ss + q / ss) * w * ss + x * ss + q % ss;
+                            (s.depth[k] > 0.0).then(|| Fragment::new(mesh, s.id[k], s.attr[k]))
+                        })
+                        .collect();
+                }
+            }
+        },
+    );
+    let mut fragments = vec![None; w * h * ss * ss];
+    for (p, samples) in px.into_iter().enumerate() {
+        let (x, y) = (p % w, p / w);
+        for (q, f) in samples.into_iter().enumerate() {
+            fragments[(y * ss + q / ss) * w * ss + x * ss + q % ss] = f;
+        }
+    }
+    GBuffer {
+        width: w * ss,
+        height: h * ss,
+        supersample: opts.supersample,
+        fragments,
+    }
+}
+
+/// Deferred shading: rasterise visibility like [`render_with`], then call `shade` once per
+/// covered sample with its [`Fragment`] and box-filter the results (uncovered samples get the
+/// background, as in [`render_with`]). The shader runs in parallel over bands of rows, so it
+/// must be `Sync`; no full-size G-buffer is ever stored.
+///
+/// # Panics
+/// If `opts.supersample == 0` or the camera's image is empty.
+pub fn render_deferred<F>(
+    mesh: &TriMesh,
+    camera: &Camera,
+    background: Option<&Environment>,
+    opts: &RasterOptions,
+    shade: F,
+) -> Rendered
+where
+    F: Fn(&Fragment) -> Vec3 + Sync,
+{
+    let frame = camera.frame();
+    let ss = opts.supersample as usize;
+    let px = rasterise(
+        mesh,
+        &frame,
+        Corner::Barycentric,
+        opts.supersample,
+        |row0, rows, s: &Samples, out: &mut [(Vec3, f32)]| {
+            resolve(row0, rows, ss, &frame, background, s, out, |k| {
+                shade(&Fragment::new(mesh, s.id[k], s.attr[k]))
+            })
+        },
+    );
+    split(px, frame.width as usize, frame.height as usize)
+}
+
+/// Split resolved `(radiance, coverage)` pixels into a [`Rendered`].
+fn split(px: Vec<(Vec3, f32)>, w: usize, h: usize) -> Rendered {
+    let (pixels, coverage) = px.into_iter().unzip();
+    Rendered {
+        image: Image {
+            width: w,
+            height: h,
+            pixels,
+        },
+        coverage,
+    }
+}
+
+/// Rows of image per band of the parallel rasteriser.
+const BAND: usize = 8;
+
+/// The shared front end: transform, bin and rasterise `mesh` band by band in parallel with
+/// per-corner attributes `attr`, handing each band's sample buffers to `per_band(row0, rows,
+/// samples, out)` which fills that band's `rows * width` output pixels.
+fn rasterise<T, B>(
+    mesh: &TriMesh,
+    frame: &CameraFrame,
+    attr: Corner<'_>,
+    supersample: u32,
+    per_band: B,
+) -> Vec<T>
+where
+    T: Default + Clone + Send,
+    B: Fn(usize, usize, &Samples, &mut [T]) + Sync,
+{
+    assert!(supersample >= 1, "supersample must be at least 1");
+    let ss = supersample as usize;
     let (w, h) = (frame.width as usize, frame.height as usize);
     assert!(w > 0 && h > 0, "empty image {w}x{h}");
 
@@ -120,8 +304,8 @@ pub fn render_with(
     let near = (1e-5 * far).max(f32::MIN_POSITIVE);
     let setup = Setup {
         cam: &cam,
-        radiance: vertex_radiance,
-        frame,
+        attr,
+        frame: *frame,
         scale: ss as f32,
         near,
     };
@@ -129,7 +313,6 @@ pub fn render_with(
     // Bin triangle indices (in mesh order, which keeps the depth tie rule) by the bands of
     // image rows their screen bounding boxes touch, dropping those entirely off screen. Bands
     // set their triangles up themselves: no per-triangle array as large as the mesh.
-    const BAND: usize = 8;
     let bands = h.div_ceil(BAND);
     let ranges: Vec<Option<(u32, u32)>> = mesh
         .indices
@@ -146,42 +329,40 @@ pub fn render_with(
     }
 
     // Rasterise bands of image rows in parallel; each band owns its samples.
-    let mut image = Image::new(w, h);
-    let mut coverage = vec![0.0f32; w * h];
-    image
-        .pixels
-        .par_chunks_mut(w * BAND)
-        .zip(coverage.par_chunks_mut(w * BAND))
+    let mut out = vec![T::default(); w * h];
+    out.par_chunks_mut(w * BAND)
         .enumerate()
-        .for_each(|(band, (pixels, cov))| {
+        .for_each(|(band, out)| {
             let tris = bins[band]
                 .iter()
-                .flat_map(|&i| setup.triangle(mesh.indices[i as usize]));
-            let rows = pixels.len() / w;
-            raster_band(
-                tris,
-                band * BAND,
-                rows,
-                w,
-                ss,
-                &frame,
-                background,
-                pixels,
-                cov,
-            );
+                .flat_map(|&i| setup.triangle(i, mesh.indices[i as usize]));
+            let rows = out.len() / w;
+            let samples = raster_samples(tris, band * BAND * ss, rows * ss, w * ss);
+            per_band(band * BAND, rows, &samples, out);
         });
-    Rendered { image, coverage }
+    out
+}
+
+/// Where the interpolated per-sample attribute comes from.
+#[derive(Clone, Copy, Debug)]
+enum Corner<'a> {
+    /// A per-vertex value (radiance).
+    Vertex(&'a [Vec3]),
+    /// The corner's unit barycentric vector: the sample gets its perspective-correct weights.
+    Barycentric,
 }
 
 /// A projected triangle in sample-grid coordinates (pixel coordinates times `supersample`),
 /// counter-clockwise on screen (positive `area`).
 #[derive(Clone, Copy, Debug)]
 struct ScreenTri {
+    /// Mesh triangle index.
+    id: u32,
     x: [f32; 3],
     y: [f32; 3],
     /// `1 / z` per vertex.
     iz: [f32; 3],
-    /// Radiance divided by `z` per vertex.
+    /// Attribute divided by `z` per vertex.
     ciz: [Vec3; 3],
     /// Twice the signed area (> 0).
     area: f32,
@@ -193,7 +374,7 @@ struct ScreenTri {
 struct Setup<'a> {
     /// Camera-space vertex positions (x right, y up, z forward).
     cam: &'a [Vec3],
-    radiance: &'a [Vec3],
+    attr: Corner<'a>,
     frame: CameraFrame,
     /// Samples per pixel along each axis.
     scale: f32,
@@ -201,7 +382,7 @@ struct Setup<'a> {
 }
 
 impl Setup<'_> {
-    /// Sample-grid coordinates, `1/z` and radiance over `z` of a camera-space point.
+    /// Sample-grid coordinates, `1/z` and attribute over `z` of a camera-space point.
     #[inline]
     fn project(&self, (p, c): (Vec3, Vec3)) -> (f32, f32, f32, Vec3) {
         let f = &self.frame;
@@ -242,22 +423,26 @@ impl Setup<'_> {
         Some((b0, b1))
     }
 
-    /// Clip mesh triangle `tri` at the near plane, project it and emit 0, 1 or 2 screen
-    /// triangles.
-    fn triangle(&self, tri: [u32; 3]) -> impl Iterator<Item = ScreenTri> {
-        let v = tri.map(|i| (self.cam[i as usize], self.radiance[i as usize]));
+    /// Clip mesh triangle `tri` (index `id`) at the near plane, project it and emit 0, 1 or 2
+    /// screen triangles.
+    fn triangle(&self, id: u32, tri: [u32; 3]) -> impl Iterator<Item = ScreenTri> {
+        let corner = |k: usize| match self.attr {
+            Corner::Vertex(v) => v[tri[k] as usize],
+            Corner::Barycentric => Vec3::AXES[k],
+        };
+        let v = [0, 1, 2].map(|k| (self.cam[tri[k] as usize], corner(k)));
         // Common case: entirely in front of the near plane.
         let out = if v.iter().all(|(p, _)| p.z >= self.near) {
-            [make_tri(v.map(|q| self.project(q))), None]
+            [make_tri(id, v.map(|q| self.project(q))), None]
         } else {
-            self.clipped(v)
+            self.clipped(id, v)
         };
         out.into_iter().flatten()
     }
 
     /// Sutherland-Hodgman against `z >= near`; attributes interpolate linearly in camera
     /// space. At most 4 vertices remain: a fan of at most 2 triangles.
-    fn clipped(&self, v: [(Vec3, Vec3); 3]) -> [Option<ScreenTri>; 2] {
+    fn clipped(&self, id: u32, v: [(Vec3, Vec3); 3]) -> [Option<ScreenTri>; 2] {
         let mut poly: [(Vec3, Vec3); 4] = [(Vec3::Z, Vec3::ZERO); 4];
         let mut n = 0;
         for i in 0..3 {
@@ -276,15 +461,18 @@ impl Setup<'_> {
         }
         let p = poly.map(|q| self.project(q));
         match n {
-            3 => [make_tri([p[0], p[1], p[2]]), None],
-            4 => [make_tri([p[0], p[1], p[2]]), make_tri([p[0], p[2], p[3]])],
+            3 => [make_tri(id, [p[0], p[1], p[2]]), None],
+            4 => [
+                make_tri(id, [p[0], p[1], p[2]]),
+                make_tri(id, [p[0], p[2], p[3]]),
+            ],
             _ => [None, None],
         }
     }
 }
 
 /// Orient a projected triangle counter-clockwise on screen; `None` if degenerate or not finite.
-fn make_tri(mut v: [(f32, f32, f32, Vec3); 3]) -> Option<ScreenTri> {
+fn make_tri(id: u32, mut v: [(f32, f32, f32, Vec3); 3]) -> Option<ScreenTri> {
     let mut area = (v[1].0 - v[0].0) * (v[2].1 - v[0].1) - (v[1].1 - v[0].1) * (v[2].0 - v[0].0);
     if area < 0.0 {
         v.swap(1, 2);
@@ -295,6 +483,7 @@ fn make_tri(mut v: [(f32, f32, f32, Vec3); 3]) -> Option<ScreenTri> {
     }
     let y = [v[0].1, v[1].1, v[2].1];
     Some(ScreenTri {
+        id,
         x: [v[0].0, v[1].0, v[2].0],
         y,
         iz: [v[0].2, v[1].2, v[2].2],
@@ -318,25 +507,20 @@ fn edge(ax: f32, ay: f32, bx: f32, by: f32, px: f32, py: f32) -> Option<f32> {
     }
 }
 
-/// Render image rows `[row0, row0 + rows)` into `pixels` / `cov` (that band's slices), drawing
-/// `tris` in order.
-#[allow(clippy::too_many_arguments)]
-fn raster_band(
-    tris: impl Iterator<Item = ScreenTri>,
-    row0: usize,
-    rows: usize,
-    w: usize,
-    ss: usize,
-    frame: &CameraFrame,
-    background: Option<&Environment>,
-    pixels: &mut [Vec3],
-    cov: &mut [f32],
-) {
-    // Sample buffers of this band: `rows * ss` sample rows of `w * ss` samples.
-    let (sw, sh) = (w * ss, rows * ss);
-    let s0 = row0 * ss;
+/// The sample buffers of one band: `1/z` (0 = nothing drawn), interpolated attribute and
+/// mesh triangle index of the nearest triangle per sample, row-major over the band.
+struct Samples {
+    depth: Vec<f32>,
+    attr: Vec<Vec3>,
+    id: Vec<u32>,
+}
+
+/// Rasterise `tris` in order into the sample rows `[s0, s0 + sh)` of width `sw` (z-buffer,
+/// coverage rule of the module docs).
+fn raster_samples(tris: impl Iterator<Item = ScreenTri>, s0: usize, sh: usize, sw: usize) -> Samples {
     let mut depth = vec![0.0f32; sw * sh]; // 1/z; 0 = nothing drawn
-    let mut color = vec![Vec3::ZERO; sw * sh];
+    let mut attr = vec![Vec3::ZERO; sw * sh];
+    let mut id = vec![0u32; sw * sh];
     let (band_lo, band_hi) = (s0 as f32, (s0 + sh) as f32);
 
     for t in tris {
@@ -373,13 +557,30 @@ fn raster_band(
                 let k = row + sx;
                 if iz > depth[k] {
                     depth[k] = iz;
-                    color[k] = (t.ciz[0] * w0 + t.ciz[1] * w1 + t.ciz[2] * w2) / iz;
+                    attr[k] = (t.ciz[0] * w0 + t.ciz[1] * w1 + t.ciz[2] * w2) / iz;
+                    id[k] = t.id;
                 }
             }
         }
     }
+    Samples { depth, attr, id }
+}
 
-    // Resolve: box-filter the samples of each pixel; background where uncovered.
+/// Resolve image rows `[row0, row0 + rows)` of width `out.len() / rows`: box-filter the
+/// samples of each pixel, `color(k)` for covered sample `k`, the background where uncovered.
+#[allow(clippy::too_many_arguments)]
+fn resolve(
+    row0: usize,
+    rows: usize,
+    ss: usize,
+    frame: &CameraFrame,
+    background: Option<&Environment>,
+    s: &Samples,
+    out: &mut [(Vec3, f32)],
+    color: impl Fn(usize) -> Vec3,
+) {
+    let w = out.len() / rows;
+    let sw = w * ss;
     let inv_n = 1.0 / (ss * ss) as f32;
     for r in 0..rows {
         for x in 0..w {
@@ -387,8 +588,8 @@ fn raster_band(
             for b in 0..ss {
                 for a in 0..ss {
                     let k = (r * ss + b) * sw + x * ss + a;
-                    if depth[k] > 0.0 {
-                        sum += color[k];
+                    if s.depth[k] > 0.0 {
+                        sum += color(k);
                         covered += 1;
                     } else if let Some(env) = background {
                         let fx = x as f32 + (a as f32 + 0.5) / ss as f32;
@@ -397,8 +598,7 @@ fn raster_band(
                     }
                 }
             }
-            pixels[r * w + x] = sum * inv_n;
-            cov[r * w + x] = covered as f32 * inv_n;
+            out[r * w + x] = (sum * inv_n, covered as f32 * inv_n);
         }
     }
 }

@@ -85,6 +85,18 @@ pub enum ShapeDesc {
         #[serde(default)]
         material: Option<Material>,
     },
+    /// A small table (a top slab on four legs) standing on y = 0, centred on the Y axis.
+    Table {
+        /// Width (x) of the top.
+        width: f32,
+        /// Depth (z) of the top.
+        depth: f32,
+        /// Height of the top surface above y = 0.
+        height: f32,
+        /// Material.
+        #[serde(default)]
+        material: Option<Material>,
+    },
     /// An axis-aligned box.
     Box {
         /// Lower corner.
@@ -298,6 +310,24 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             ),
             one(material),
         ),
+        ShapeDesc::Table {
+            width,
+            depth,
+            height,
+            material,
+        } => {
+            if !(*width > 0.0 && *depth > 0.0 && *height > 0.0) {
+                return Err(SceneError::malformed(
+                    Path::new("<table>"),
+                    "table width, depth and height must be > 0",
+                ));
+            }
+            let t = 0.04 * height.max(*width);
+            (
+                shapes::table(*width, *depth, *height, t, t),
+                one(material),
+            )
+        }
         ShapeDesc::Box { min, max, material } => (
             shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), 4),
             one(material),
@@ -315,6 +345,7 @@ fn shape_origin(s: &ShapeDesc) -> &Path {
         ShapeDesc::Sphere { .. } => Path::new("<sphere>"),
         ShapeDesc::Plane { .. } => Path::new("<plane>"),
         ShapeDesc::Box { .. } => Path::new("<box>"),
+        ShapeDesc::Table { .. } => Path::new("<table>"),
     }
 }
 

@@ -128,7 +128,8 @@ pub fn table(width: f32, depth: f32, height: f32, thickness: f32, leg: f32) -> T
     let mut m = aabb_box(
         Vec3::new(-width / 2.0, height - thickness, -depth / 2.0),
         Vec3::new(width / 2.0, height, depth / 2.0),
-        4,
+        // Fine enough for per-vertex PRT to carry the shadow of an object standing on it.
+        24,
     );
     let inset = leg;
     for (sx, sz) in [(-1.0f32, -1.0f32), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
