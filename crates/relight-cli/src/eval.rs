@@ -26,12 +26,18 @@ use std::path::PathBuf;
 /// Arguments of `relight eval`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene descriptions (JSON).
-    #[arg(required = true)]
+    /// Scene descriptions (JSON); for `--method hybrid` one scene, default
+    /// examples/teapot_table.json.
     pub scenes: Vec<PathBuf>,
-    /// Method to evaluate (only `sh` so far).
+    /// Method to evaluate: `sh` (error per SH order) or `hybrid` (the thesis' Table 5.1
+    /// experiment: SH-only vs the thesis' hybrid vs relight's hybrid, against Mitsuba).
     #[arg(long, default_value = "sh")]
     pub method: String,
+    /// SH order of the bake for `--method hybrid`.
+    #[arg(long, default_value_t = 5)]
+    pub order: usize,
+    #[command(flatten)]
+    pub hybrid: crate::hybrid::HybridOpts,
     /// Environments to light every scene with, in turn (default: each scene's own).
     #[arg(long)]
     pub env: Vec<PathBuf>,
@@ -76,7 +82,8 @@ pub struct EvalRow {
     pub reference_noise: f64,
 }
 
-fn stem(p: &std::path::Path) -> String {
+/// File stem as a string.
+pub fn stem(p: &std::path::Path) -> String {
     p.file_stem().unwrap_or_default().to_string_lossy().to_string()
 }
 
@@ -91,8 +98,11 @@ fn truncate(t: &ShTransfer, order: usize) -> ShTransfer {
 
 /// Run `relight eval`.
 pub fn run(a: Args) -> Result<()> {
-    if a.method != "sh" {
-        bail!("unknown --method '{}': this version evaluates only 'sh'", a.method);
+    match a.method.as_str() {
+        "sh" if a.scenes.is_empty() => bail!("--method sh needs at least one scene"),
+        "sh" => {}
+        "hybrid" => return run_hybrid(&a),
+        m => bail!("unknown --method '{m}' (sh, hybrid)"),
     }
     if a.min_order < 1 || a.min_order > a.max_order || a.max_order > relight_sphere::sh::MAX_ORDER {
         bail!("orders {}..={} are not a valid range in 1..={}", a.min_order, a.max_order, relight_sphere::sh::MAX_ORDER);
@@ -130,20 +140,7 @@ pub fn run(a: Args) -> Result<()> {
             };
             let baked: ShBake = crate::bake::bake_scene(&desc, &scene, &settings, crate::bake::parse_backend(None)?, false, scene_path)?;
             let dir = a.out.join(&tag);
-            let json = mitsuba::export_mitsuba(&scene, &dir.join("mitsuba"), a.spp, 2).map_err(|e| anyhow!("{tag}: {e}"))?;
-            eprintln!("eval: {tag}: Mitsuba 3, {} spp x 2 seeds", a.spp);
-            let (imgs, report) = mitsuba::render_mitsuba(&python, &json, &dir.join("mitsuba"), &[1, 2], None)
-                .map_err(|e| anyhow!("{tag}: {e}"))?;
-            eprintln!("eval: {tag}: {report}");
-            let reference = Image {
-                width: imgs[0].width,
-                height: imgs[0].height,
-                pixels: imgs[0].pixels.iter().zip(&imgs[1].pixels).map(|(x, y)| (*x + *y) * 0.5).collect(),
-            };
-            // Coverage mask from the rasteriser (same camera, 4x4 samples like the box filter).
-            let cover = raster::render_with(&scene.mesh, &scene.camera, &vec![glam::Vec3::ONE; scene.mesh.vertex_count()], None, &RasterOptions { supersample: 4 });
-            let mask = cover.full_coverage_mask();
-            let noise = compare::metrics(&imgs[0], &imgs[1], Some(&mask)).rel_rmse / 2.0;
+            let (reference, mask, noise) = mask_and_reference(&python, &scene, &dir, a.spp)?;
             let tm = ToneMap::Exponential { gamma: 1.0 / mean_lum(&reference, &mask).max(1e-6) as f32 };
             write_image(&dir.join("mitsuba.exr"), &reference, &tm)?;
             write_image(&dir.join("mitsuba.png"), &reference, &tm)?;
@@ -186,6 +183,33 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
+/// Mitsuba 3 reference of `scene` (max_depth 2, `spp` x 2 seeds, mean of the two) exported and
+/// rendered under `dir`, the mask of pixels fully covered by geometry (4 x 4 supersampled
+/// coverage, like Mitsuba's box filter), and the reference's own relative noise.
+pub fn mask_and_reference(
+    python: &std::path::Path,
+    scene: &relight_scene::scene::Scene,
+    dir: &std::path::Path,
+    spp: u32,
+) -> Result<(Image, Vec<bool>, f64)> {
+    let json = mitsuba::export_mitsuba(scene, &dir.join("mitsuba"), spp, 2)
+        .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
+    eprintln!("eval: {}: Mitsuba 3, {spp} spp x 2 seeds", dir.display());
+    let (imgs, report) = mitsuba::render_mitsuba(python, &json, &dir.join("mitsuba"), &[1, 2], None)
+        .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
+    eprintln!("eval: {}: {report}", dir.display());
+    let reference = Image {
+        width: imgs[0].width,
+        height: imgs[0].height,
+        pixels: imgs[0].pixels.iter().zip(&imgs[1].pixels).map(|(x, y)| (*x + *y) * 0.5).collect(),
+    };
+    let ones = vec![glam::Vec3::ONE; scene.mesh.vertex_count()];
+    let cover = raster::render_with(&scene.mesh, &scene.camera, &ones, None, &RasterOptions { supersample: 4 });
+    let mask = cover.full_coverage_mask();
+    let noise = compare::metrics(&imgs[0], &imgs[1], Some(&mask)).rel_rmse / 2.0;
+    Ok((reference, mask, noise))
+}
+
 fn mean_lum(img: &Image, mask: &[bool]) -> f64 {
     let (s, n) = img.pixels.iter().zip(mask).filter(|(_, &m)| m).fold((0.0, 0usize), |(s, n), (c, _)| (s + compare::luminance(*c) as f64, n + 1));
     if n == 0 { 0.0 } else { s / n as f64 }
@@ -200,4 +224,31 @@ fn clone_bake(b: &ShBake) -> ShBake {
         transfer: b.transfer.clone(),
         settings: b.settings.clone(),
     }
+}
+
+/// The environments of the hybrid experiment when none are given: the thesis' Grace, St
+/// Peter's, Eucalyptus Grove and Uffizi, plus Pisa (sunlit courtyard) from ../shared.
+pub const HYBRID_PROBES: [&str; 5] = [
+    "data/envmaps/debevec/grace_cross.hdr",
+    "data/envmaps/debevec/stpeters_cross.hdr",
+    "data/envmaps/debevec/rnl_cross.hdr",
+    "data/envmaps/debevec_latlong_256x128/uffizi.hdr",
+    "data/envmaps/debevec_latlong_256x128/pisa.hdr",
+];
+
+fn run_hybrid(a: &Args) -> Result<()> {
+    let scene = match a.scenes.as_slice() {
+        [] => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/teapot_table.json"),
+        [s] => s.clone(),
+        _ => bail!("--method hybrid evaluates one scene at a time"),
+    };
+    let envs: Vec<PathBuf> = if a.env.is_empty() {
+        let shared = relight_scene::testdata::shared_dir()
+            .context("no --env given and ../shared (the default probes) is not present")?;
+        HYBRID_PROBES.iter().map(|p| shared.join(p)).collect()
+    } else {
+        a.env.clone()
+    };
+    crate::eval_hybrid::run(&scene, &envs, a.order, a.samples, a.spp, a.width, &a.hybrid, &a.out)?;
+    Ok(())
 }

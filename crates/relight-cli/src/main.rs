@@ -7,8 +7,11 @@ mod bake;
 mod bench;
 mod common;
 mod compare;
+mod decompose;
 mod demo;
 mod eval;
+mod eval_hybrid;
+mod hybrid;
 mod info;
 mod reference;
 mod render;
@@ -41,6 +44,8 @@ enum Cmd {
     ExportMitsuba(reference::ExportArgs),
     /// Evaluate a method against Mitsuba 3 ground truth (error per SH order).
     Eval(eval::Args),
+    /// Split an environment into low-order SH plus directional cap lights (hybrid, thesis 4.3).
+    Decompose(decompose::Args),
     /// Compare two images (EXR/HDR): RMSE, relative RMSE, PSNR, luminance error, heat map.
     Compare(compare::Args),
     /// Describe a baked bundle.
@@ -68,6 +73,7 @@ fn main() {
         Cmd::Reference(a) => reference::run(a),
         Cmd::ExportMitsuba(a) => reference::export(a),
         Cmd::Eval(a) => eval::run(a),
+        Cmd::Decompose(a) => decompose::run(a),
         Cmd::Compare(a) => compare::run(a),
         Cmd::Info(a) => info::run(a),
         Cmd::Project(a) => info::project(a),

@@ -19,6 +19,12 @@ use std::time::Instant;
 pub struct Args {
     /// The baked bundle.
     pub bundle: PathBuf,
+    /// Method: `sh` (SH PRT of the whole environment) or `hybrid` (SH part + cap lights with
+    /// shadow maps; options prefixed "Hybrid:").
+    #[arg(long, default_value = "sh")]
+    pub method: String,
+    #[command(flatten)]
+    pub hybrid: crate::hybrid::HybridOpts,
     /// Environment map (default: the one of the baked scene).
     #[arg(long)]
     pub env: Option<PathBuf>,
@@ -198,14 +204,32 @@ pub fn run(a: Args) -> Result<()> {
     if a.supersample == 0 || a.supersample > 16 {
         bail!("--supersample {} is not in 1..=16", a.supersample);
     }
-    let (img, t) = relight(&bake, &env, &camera, window, a.supersample, a.background);
+    let img = match a.method.as_str() {
+        "sh" => {
+            let (img, t) = relight(&bake, &env, &camera, window, a.supersample, a.background);
+            println!(
+                "SH order {}, {} vertices: projection {:.1} ms (once per environment), relight {:.2} ms, raster {:.1} ms",
+                bake.transfer.order, bake.transfer.vertex_count, t.project_ms, t.shade_ms, t.raster_ms
+            );
+            img
+        }
+        "hybrid" => {
+            let (img, t, dec) = crate::hybrid::relight_hybrid(&bake, &env, &camera, &a.hybrid, a.supersample, a.background)?;
+            println!(
+                "hybrid: {} lights + SH order {}: decomposition {:.1} ms (once per environment), SH relight {:.2} ms, shadow maps + shading {:.1} ms",
+                dec.lights.len(),
+                a.hybrid.sh_order.unwrap_or(bake.transfer.order),
+                t.decompose_ms,
+                t.shade_ms,
+                t.render_ms
+            );
+            img
+        }
+        m => bail!("unknown --method '{m}' (sh, hybrid)"),
+    };
     for o in &a.out {
         write_image(o, &img, &tm)?;
         println!("wrote {}", o.display());
     }
-    println!(
-        "SH order {}, {} vertices: projection {:.1} ms (once per environment), relight {:.2} ms, raster {:.1} ms",
-        bake.transfer.order, bake.transfer.vertex_count, t.project_ms, t.shade_ms, t.raster_ms
-    );
     Ok(())
 }

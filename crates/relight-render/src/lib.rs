@@ -4,11 +4,13 @@
 //! image comparison. Conventions are those of `relight_sphere` (Mitsuba 3's, +Y up).
 
 pub mod compare;
+pub mod hybrid;
 pub mod image;
 pub mod mitsuba;
 pub mod pathtrace;
 pub mod raster;
 pub mod shade_sh;
+pub mod shadowmap;
 pub mod text;
 pub mod tonemap;
 

@@ -1,4 +1,10 @@
-//! CPU triangle rasteriser for per-vertex radiance (Gouraud shading of PRT results).
+//! CPU triangle rasteriser for per-vertex radiance (Gouraud shading of PRT results), and the
+//! same rasteriser as a G-buffer (visibility buffer) for deferred shading: [`gbuffer`] stores
+//! each sample's [`Fragment`] (triangle, perspective-correct barycentrics, world position,
+//! shading and geometric normals); [`render_deferred`] shades fragments band by band with a
+//! closure (the hybrid renderer's pass). All three entry points share one triangle setup,
+//! binning and sample loop; they differ only in the per-corner attribute interpolated
+//! (radiance, or the corner's barycentric unit vector) and in the resolve.
 //!
 //! Conventions:
 //! * Camera: Mitsuba 3's `perspective` sensor ([`Camera::frame`]); continuous pixel coordinates
@@ -517,7 +523,12 @@ struct Samples {
 
 /// Rasterise `tris` in order into the sample rows `[s0, s0 + sh)` of width `sw` (z-buffer,
 /// coverage rule of the module docs).
-fn raster_samples(tris: impl Iterator<Item = ScreenTri>, s0: usize, sh: usize, sw: usize) -> Samples {
+fn raster_samples(
+    tris: impl Iterator<Item = ScreenTri>,
+    s0: usize,
+    sh: usize,
+    sw: usize,
+) -> Samples {
     let mut depth = vec![0.0f32; sw * sh]; // 1/z; 0 = nothing drawn
     let mut attr = vec![Vec3::ZERO; sw * sh];
     let mut id = vec![0u32; sw * sh];
@@ -972,6 +983,110 @@ mod perf {
                 "{} triangles, 1024x768, supersample {ss}: {ms:.1} ms",
                 mesh.triangle_count()
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod gbuffer_tests {
+    use super::*;
+
+    fn tilted_quad() -> (TriMesh, Camera) {
+        let corners = [
+            Vec3::new(-3.0, -2.0, 2.0),
+            Vec3::new(3.0, -2.0, 2.0),
+            Vec3::new(3.0, 2.0, -6.0),
+            Vec3::new(-3.0, 2.0, -6.0),
+        ];
+        let n = (corners[1] - corners[0])
+            .cross(corners[3] - corners[0])
+            .normalize();
+        let mesh = TriMesh {
+            positions: corners.to_vec(),
+            // Vertex normals that vary linearly (unnormalised) to test their interpolation.
+            normals: vec![n, n + Vec3::X * 0.5, n, n - Vec3::X * 0.5],
+            uvs: None,
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            material_ids: vec![0, 0],
+        };
+        let camera = Camera {
+            origin: [0.0, 0.0, 5.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 90.0,
+            width: 48,
+            height: 40,
+        };
+        (mesh, camera)
+    }
+
+    #[test]
+    fn gbuffer_interpolation_is_exact_for_linear_attributes() {
+        let (mesh, camera) = tilted_quad();
+        let f = |p: Vec3| {
+            Vec3::new(
+                0.3 * p.x + 0.1 * p.z + 1.0,
+                0.5 * p.y - 0.2 * p.z,
+                p.z + 3.0,
+            )
+        };
+        let values: Vec<Vec3> = mesh.positions.iter().map(|&p| f(p)).collect();
+        let opts = RasterOptions { supersample: 2 };
+        let g = gbuffer(&mesh, &camera, &opts);
+        assert_eq!((g.width, g.height), (96, 80));
+        let frame = camera.frame();
+        let (p0, ng) = (mesh.positions[0], mesh.geometric_normal(0));
+        let mut checked = 0;
+        for y in 0..g.height {
+            for x in 0..g.width {
+                let Some(fr) = g.fragments[y * g.width + x] else {
+                    continue;
+                };
+                // The sample's ray meets the quad's plane at the fragment's position.
+                let d = frame.dir_at((x as f32 + 0.5) / 2.0, (y as f32 + 0.5) / 2.0);
+                let hit = frame.origin + d * ((p0 - frame.origin).dot(ng) / d.dot(ng));
+                // 2e-4 (relative to the scene size ~6): f32 projection and barycentrics.
+                assert!(
+                    (fr.position - hit).length() < 2e-4 * 6.0,
+                    "{} vs {hit}",
+                    fr.position
+                );
+                let v = fr.interpolate(&mesh, &values);
+                assert!(
+                    (v - f(hit)).abs().max_element() < 2e-4 * f(hit).abs().max_element().max(1.0)
+                );
+                assert!((fr.geometric_normal.abs() - ng.abs()).length() < 1e-6);
+                assert!((fr.shading_normal.length() - 1.0).abs() < 1e-5);
+                assert!((fr.bary.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+                checked += 1;
+            }
+        }
+        assert!(checked > 2000, "{checked}");
+    }
+
+    #[test]
+    fn deferred_shading_of_vertex_radiance_matches_render_with() {
+        let (mesh, camera) = tilted_quad();
+        let rad: Vec<Vec3> = mesh.positions.iter().map(|p| p.abs() + Vec3::ONE).collect();
+        for ss in [1, 3] {
+            let opts = RasterOptions { supersample: ss };
+            let a = render_with(&mesh, &camera, &rad, None, &opts);
+            let b = render_deferred(&mesh, &camera, None, &opts, |f| f.interpolate(&mesh, &rad));
+            assert_eq!(a.coverage, b.coverage, "same samples covered");
+            for (p, q) in a.image.pixels.iter().zip(&b.image.pixels) {
+                // 1e-5 relative: the two interpolate in a different order (f32 rounding).
+                assert!((*p - *q).abs().max_element() <= 1e-5 * p.max_element().max(1.0));
+            }
+            // The G-buffer covers exactly the same samples.
+            let g = gbuffer(&mesh, &camera, &opts);
+            let n = ss as usize;
+            for (k, c) in a.coverage.iter().enumerate() {
+                let (x, y) = (k % 48, k / 48);
+                let cov = (0..n * n)
+                    .filter(|q| g.fragments[(y * n + q / n) * g.width + x * n + q % n].is_some())
+                    .count();
+                assert_eq!(cov as f32 / (n * n) as f32, *c);
+            }
         }
     }
 }

@@ -70,7 +70,7 @@ pub fn text_width(text: &str, scale: usize) -> usize {
 /// pixels per font pixel, on a dark box with a 2-pixel margin so it reads on any picture.
 /// Clipped to the image.
 pub fn draw_label(px: &mut [[u8; 3]], w: usize, x: usize, y: usize, scale: usize, text: &str) {
-    debug_assert!(scale >= 1 && px.len() % w.max(1) == 0);
+    debug_assert!(scale >= 1 && px.len().is_multiple_of(w.max(1)));
     let h = px.len() / w.max(1);
     let (bw, bh) = (text_width(text, scale) + 4, 7 * scale + 4);
     for yy in y..(y + bh).min(h) {

@@ -31,6 +31,7 @@
 //! * [`sh`]: real SH evaluation, projection, zonal convolution, windows; [`sh_rotate`]:
 //!   rotation of any order; [`sh_product`]: triple-product tensor; [`basis`]: the
 //!   [`basis::SphericalBasis`] trait;
+//! * [`decompose`]: environment = SH part + cap lights (hybrid thesis 4.3);
 //! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
 //!
 //! ## Example
@@ -57,12 +58,16 @@ pub use glam::{Mat3, Quat, Vec2, Vec3};
 
 pub mod basis;
 pub mod cubemap;
+pub mod decompose;
+pub mod env_prefilter;
 pub mod env_sampler;
 pub mod envmap;
 pub mod icosphere;
 pub mod latlong;
 pub mod probe;
 pub mod quadrature;
+pub mod sg;
+pub mod sg_fit;
 pub mod sh;
 pub mod sh_product;
 pub mod sh_project;
