@@ -167,7 +167,109 @@ pub fn run(a: Args) -> Result<()> {
         r.stream_copy_gbps,
         1.0 / r.ratio_to_bandwidth_bound
     );
+
+    // 4. Hybrid method (issue 3): decomposition per frame, hybrid frame with 8 lights.
+    bench_hybrid(a.quick);
+    // 5. Gaussian-prefiltered environment (issue 4 building block).
+    bench_prefilter();
     Ok(())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Decomposition of a 6 x 64 x 64 cube map (median of 9), and a 512 x 512 hybrid frame with 8
+/// lights on a ~100K-triangle scene (best of 3), area and point lights, 2048 and 1024 maps.
+fn bench_hybrid(quick: bool) {
+    use relight_render::hybrid::{build_shadow_maps, render_hybrid_with_maps, HybridLight, ShadowSettings};
+    let ms = median((0..9).map(|_| relight_sphere::decompose::bench_decompose()).collect());
+    println!("\n## Hybrid: environment decomposition, 6 x 64 x 64 cube map, 3 lights + sky");
+    println!("| ms per decomposition (median of 9) | per-frame budget |\n|---|---|\n| {ms:.2} | 5 ms |");
+    let mut mesh = relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 1.0, 0.0), 1.0, 150, 300);
+    mesh.append(&relight_scene::shapes::ground_plane(glam::Vec3::ZERO, 10.0, 70), 0);
+    let prt = vec![glam::Vec3::splat(0.1); mesh.vertex_count()];
+    let albedo = vec![glam::Vec3::splat(0.6); mesh.vertex_count()];
+    let camera = relight_scene::camera::Camera {
+        origin: [0.0, 3.0, 5.0],
+        target: [0.0, 0.6, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_deg: 45.0,
+        width: 512,
+        height: 512,
+    };
+    let lights: Vec<HybridLight> = (0..8)
+        .map(|i| {
+            let (phi, el) = (i as f32 * 2.4, 0.3 + 0.15 * i as f32);
+            HybridLight {
+                dir: glam::Vec3::new(el.cos() * phi.cos(), el.sin(), el.cos() * phi.sin()),
+                power: glam::Vec3::ONE,
+                cap_radius: (2.0 + 0.5 * i as f32).to_radians(),
+            }
+        })
+        .collect();
+    let t0 = Instant::now();
+    let opts = relight_render::raster::RasterOptions { supersample: 1 };
+    std::hint::black_box(relight_render::raster::render_with(&mesh, &camera, &prt, None, &opts));
+    let prt_ms = t0.elapsed().as_secs_f64() * 1e3;
+    println!(
+        "\n## Hybrid frame: 512 x 512, {} triangles, 8 lights (best of {})",
+        mesh.triangle_count(),
+        if quick { 1 } else { 3 }
+    );
+    println!("| shadow maps | lights | 8 shadow maps (ms) | shading (ms) | frame (ms) | PRT-only frame (ms) |\n|---|---|---|---|---|---|");
+    for (map_size, area_light) in [(2048, true), (2048, false), (1024, true), (1024, false)] {
+        let s = ShadowSettings { map_size, area_light, ..Default::default() };
+        let mut best = (f64::MAX, f64::MAX);
+        for _ in 0..if quick { 1 } else { 3 } {
+            let t0 = Instant::now();
+            let maps = build_shadow_maps(&mesh, &lights, &s);
+            let t1 = Instant::now();
+            std::hint::black_box(render_hybrid_with_maps(&mesh, &camera, &prt, &albedo, &lights, &maps, &s, None, 1));
+            let t2 = Instant::now();
+            let (a, b) = ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3);
+            if a + b < best.0 + best.1 {
+                best = (a, b);
+            }
+        }
+        println!(
+            "| {map_size} | {} | {:.0} | {:.0} | {:.0} | {prt_ms:.0} |",
+            if area_light { "area (PCSS)" } else { "point (PCF)" },
+            best.0,
+            best.1,
+            best.0 + best.1
+        );
+    }
+}
+
+/// Gaussian-prefiltered cube map, 6 x 256 x 256, 8 levels: sequential (the library's
+/// `PrefilteredEnv::build`) and with the per-face jobs on rayon's pool.
+fn bench_prefilter() {
+    use relight_sphere::cubemap::CubeFace;
+    use relight_sphere::env_prefilter::{default_levels, prefilter_face, PrefilterOptions, PrefilteredEnv, SourcePyramid};
+    let sequential = relight_sphere::env_prefilter::bench_prefilter();
+    let map = relight_sphere::EnvMap::cube_from_fn(256, |d| {
+        glam::Vec3::splat(0.2 + d.y.max(0.0)) + glam::Vec3::splat(50.0) * (d.dot(glam::Vec3::new(0.3, 0.8, 0.5).normalize()) > 0.999) as u8 as f32
+    });
+    let levels = default_levels(256, 8);
+    let opts = PrefilterOptions::default();
+    let t0 = Instant::now();
+    let pyr = SourcePyramid::new(&map);
+    let data: Vec<Vec<glam::Vec3>> = levels
+        .iter()
+        .map(|l| {
+            let mut v = vec![glam::Vec3::ZERO; 6 * l.size * l.size];
+            v.par_chunks_mut(l.size * l.size)
+                .enumerate()
+                .for_each(|(f, chunk)| prefilter_face(&pyr, l, &opts, CubeFace::from_index(f), chunk));
+            v
+        })
+        .collect();
+    std::hint::black_box(PrefilteredEnv::from_levels(levels, data));
+    let parallel = t0.elapsed().as_secs_f64();
+    println!("\n## Gaussian-prefiltered environment: 6 x 256 x 256, 8 levels");
+    println!("| sequential (s) | {} threads (s) | cmft's published time (s) |\n|---|---|---|\n| {sequential:.2} | {parallel:.2} | 6.0 |", rayon::current_num_threads());
 }
 
 /// Cast exactly the rays of a shadowed + 1 bounce bake (same directions and origins), doing

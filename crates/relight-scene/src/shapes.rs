@@ -138,7 +138,8 @@ pub fn table(width: f32, depth: f32, height: f32, thickness: f32, leg: f32) -> T
         let l = aabb_box(
             Vec3::new(x - leg / 2.0, 0.0, z - leg / 2.0),
             Vec3::new(x + leg / 2.0, height - thickness, z + leg / 2.0),
-            1,
+            // Per-vertex PRT needs vertices along the legs: the top shadows their upper part.
+            12,
         );
         m.append(&l, 0);
     }
