@@ -8,6 +8,7 @@
 
 use crate::bake::bake_scene;
 use crate::common::{describe_tonemap, write_image};
+use crate::hybrid::{relight_hybrid, HybridOpts};
 use crate::render::relight;
 use anyhow::{Context, Result};
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
@@ -91,8 +92,11 @@ pub fn demo_scene(width: u32) -> SceneDesc {
 struct Row {
     rotate: f32,
     prt: Image,
+    hybrid: Image,
     reference: Image,
     metrics: Metrics,
+    hybrid_metrics: Metrics,
+    lights: usize,
     relight_ms: f64,
     reference_s: f64,
 }
@@ -136,6 +140,8 @@ pub fn run(a: Args) -> Result<()> {
         let mut env = scene.env.clone();
         env.rotate_y_deg = rotate;
         let (prt, times) = relight(&baked, &env, &scene.camera, Window::None, 2, true);
+        let (hybrid, htimes, dec) =
+            relight_hybrid(&baked, &env, &scene.camera, &HybridOpts::default(), 2, true)?;
         let mut s = scene.clone();
         s.env = env;
         let t0 = Instant::now();
@@ -153,6 +159,7 @@ pub fn run(a: Args) -> Result<()> {
         );
         let reference_s = t0.elapsed().as_secs_f64();
         let metrics = compare::metrics(&prt, &reference, None);
+        let hybrid_metrics = compare::metrics(&hybrid, &reference, None);
         if rows.is_empty() {
             let mean_y = reference
                 .pixels
@@ -169,6 +176,14 @@ pub fn run(a: Args) -> Result<()> {
         let tag = format!("rot{rotate:03.0}");
         write_image(&a.out.join(format!("prt_{tag}.exr")), &prt, &tm)?;
         write_image(&a.out.join(format!("prt_{tag}.png")), &prt, &tm)?;
+        write_image(&a.out.join(format!("hybrid_{tag}.exr")), &hybrid, &tm)?;
+        write_image(&a.out.join(format!("hybrid_{tag}.png")), &hybrid, &tm)?;
+        relight_scene::io::image::write_png_srgb8(
+            &a.out.join(format!("hybrid_error_{tag}.png")),
+            hybrid.width,
+            hybrid.height,
+            &compare::heatmap(&hybrid, &reference),
+        )?;
         write_image(&a.out.join(format!("reference_{tag}.exr")), &reference, &tm)?;
         write_image(&a.out.join(format!("reference_{tag}.png")), &reference, &tm)?;
         relight_scene::io::image::write_png_srgb8(
@@ -178,16 +193,22 @@ pub fn run(a: Args) -> Result<()> {
             &compare::heatmap(&prt, &reference),
         )?;
         eprintln!(
-            "demo: sky rotated {rotate:>5.1} deg: relight {:.2} ms, reference {:.1} s, relative RMSE {:.1} %",
+            "demo: sky rotated {rotate:>5.1} deg: SH relight {:.2} ms, hybrid {:.0} ms ({} lights), reference {:.1} s; relative RMSE SH {:.1} %, hybrid {:.1} %",
             times.shade_ms,
+            htimes.decompose_ms + htimes.shade_ms + htimes.render_ms,
+            dec.lights.len(),
             reference_s,
-            100.0 * metrics.rel_rmse
+            100.0 * metrics.rel_rmse,
+            100.0 * hybrid_metrics.rel_rmse
         );
         rows.push(Row {
             rotate,
             prt,
+            hybrid,
             reference,
             metrics,
+            hybrid_metrics,
+            lights: dec.lights.len(),
             relight_ms: times.shade_ms,
             reference_s,
         });
@@ -212,18 +233,22 @@ pub fn run(a: Args) -> Result<()> {
 fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap, order: usize, spp: u32) -> Result<()> {
     let (w, h) = (rows[0].prt.width, rows[0].prt.height);
     let gap = 4;
-    let (sw, sh) = (3 * w + 4 * gap, rows.len() * h + (rows.len() + 1) * gap);
+    let (sw, sh) = (5 * w + 6 * gap, rows.len() * h + (rows.len() + 1) * gap);
     let mut px = vec![[40u8, 40, 40]; sw * sh];
     for (r, row) in rows.iter().enumerate() {
         let panels = [
             tm.to_srgb8(&row.prt),
+            tm.to_srgb8(&row.hybrid),
             tm.to_srgb8(&row.reference),
             compare::heatmap(&row.prt, &row.reference),
+            compare::heatmap(&row.hybrid, &row.reference),
         ];
         let labels = [
             format!("SH PRT ORDER {order}, SKY {:.0}°, {:.1} MS", row.rotate, row.relight_ms),
+            format!("HYBRID, {} LIGHTS", row.lights),
             format!("PATH TRACED {spp} SPP, {:.1} S", row.reference_s),
-            format!("ERROR, REL. RMSE {:.1}%", 100.0 * row.metrics.rel_rmse),
+            format!("SH ERROR, REL. RMSE {:.1}%", 100.0 * row.metrics.rel_rmse),
+            format!("HYBRID ERROR, REL. RMSE {:.1}%", 100.0 * row.hybrid_metrics.rel_rmse),
         ];
         for (c, (panel, label)) in panels.iter().zip(&labels).enumerate() {
             let (x0, y0) = (gap + c * (w + gap), gap + r * (h + gap));
@@ -263,7 +288,9 @@ Ground truth: relight's reference path tracer at {spp} spp, max_depth 3 (direct 
 <p>Tone map of the PNGs: {tm}. Heat maps: absolute luminance error, colour ramp scaled to the reference's \
 mean luminance (see <code>relight_render::compare::heatmap</code>). Metrics over all pixels, background included \
 (identical in both, so it dilutes the error a little). A 9..36-coefficient SH cannot hold the sun's 0.53 degree disc: \
-sharp sun shadows are blurred and ring; that is what the <code>hybrid</code> method (next issue) addresses.</p>",
+sharp sun shadows are blurred and ring. The <code>hybrid</code> column (work in progress, issue 3) extracts the sun from the \
+environment as a cap light with a soft shadow map and keeps SH PRT for the rest; its sun light is direct only (no bounce), \
+so it is a little dark where the reference has sunlight reflected by the ground.</p>",
         order = s.order,
         samples = s.samples,
         bounces = s.bounces,
@@ -273,21 +300,22 @@ sharp sun shadows are blurred and ring; that is what the <code>hybrid</code> met
         spp = a.spp,
         tm = describe_tonemap(tm),
     );
-    h.push_str("<table><tr><th>sky rotation</th><th>relight (ms)</th><th>reference (s)</th><th>relative RMSE</th><th>RMSE</th><th>PSNR (dB)</th><th>mean |ΔY| (Table 5.1)</th><th>std |ΔY|</th></tr>");
+    h.push_str("<table><tr><th>sky rotation</th><th>method</th><th>relight (ms)</th><th>reference (s)</th><th>relative RMSE</th><th>RMSE</th><th>PSNR (dB)</th><th>mean |ΔY| (Table 5.1)</th><th>std |ΔY|</th></tr>");
     for r in rows {
-        let m = &r.metrics;
-        let _ = write!(
-            h,
-            "<tr><td>{:.0}°</td><td>{:.2}</td><td>{:.1}</td><td>{:.2} %</td><td>{:.4}</td><td>{:.1}</td><td>{:.4}</td><td>{:.4}</td></tr>",
-            r.rotate, r.relight_ms, r.reference_s, 100.0 * m.rel_rmse, m.rmse, m.psnr, m.mean_abs_lum_err, m.std_abs_lum_err
-        );
+        for (name, m, ms) in [("SH PRT", &r.metrics, format!("{:.2}", r.relight_ms)), ("hybrid", &r.hybrid_metrics, format!("{} lights", r.lights))] {
+            let _ = write!(
+                h,
+                "<tr><td>{:.0}°</td><td>{name}</td><td>{ms}</td><td>{:.1}</td><td>{:.2} %</td><td>{:.4}</td><td>{:.1}</td><td>{:.4}</td><td>{:.4}</td></tr>",
+                r.rotate, r.reference_s, 100.0 * m.rel_rmse, m.rmse, m.psnr, m.mean_abs_lum_err, m.std_abs_lum_err
+            );
+        }
     }
-    h.push_str("</table><h2>SH PRT | path-traced reference | error</h2>");
+    h.push_str("</table><h2>SH PRT | hybrid (SH + sun with shadow map) | path-traced reference | SH error | hybrid error</h2>");
     for r in rows {
         let tag = format!("rot{:03.0}", r.rotate);
         let _ = write!(
             h,
-            "<p>sky rotated {:.0}°<br><img src=\"prt_{tag}.png\"><img src=\"reference_{tag}.png\"><img src=\"error_{tag}.png\"></p>",
+            "<p>sky rotated {:.0}°<br><img src=\"prt_{tag}.png\"><img src=\"hybrid_{tag}.png\"><img src=\"reference_{tag}.png\"><img src=\"error_{tag}.png\"><img src=\"hybrid_error_{tag}.png\"></p>",
             r.rotate
         );
     }

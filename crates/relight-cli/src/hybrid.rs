@@ -44,6 +44,19 @@ pub struct HybridOpts {
     pub thesis: bool,
 }
 
+impl Default for HybridOpts {
+    /// The same defaults as the command line's.
+    fn default() -> Self {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrap {
+            #[command(flatten)]
+            o: HybridOpts,
+        }
+        Wrap::parse_from(["relight"]).o
+    }
+}
+
 impl HybridOpts {
     /// Decomposition and shadow settings for a bake of SH order `bake_order`.
     pub fn settings(&self, bake_order: usize) -> Result<(DecomposeSettings, ShadowSettings)> {
