@@ -41,7 +41,7 @@ pub struct Args {
     /// Width of each latlong panel of the picture, pixels.
     #[arg(long, default_value_t = 512)]
     pub panel_width: usize,
-    /// Tone map of the picture (linear[:E], reinhard[:E], exp[:GAMMA]); default Reinhard
+    /// Tone map of the picture (`linear[:E]`, `reinhard[:E]`, `exp[:GAMMA]`); default Reinhard
     /// with the exposure that maps the mean radiance to 0.5.
     #[arg(long)]
     pub tonemap: Option<String>,

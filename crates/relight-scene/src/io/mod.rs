@@ -3,7 +3,7 @@
 //! * meshes: [`obj`] (+ MTL), [`ply`] (ASCII and binary; binary write), [`gltf`] (`.gltf`,
 //!   `.glb`), all through [`load_mesh`];
 //! * images: [`image`] (Radiance `.hdr`, OpenEXR, 8-bit sRGB PNG);
-//! * environments: [`env`] (latlong, vertical cross, angular probe) through [`load_env`].
+//! * environments: [`mod@env`] (latlong, vertical cross, angular probe) through [`load_env`].
 //!
 //! The per-format `read_*` functions are the raw parsers (no degenerate-triangle removal, normals
 //! possibly missing); [`load_mesh`] is the entry point that finishes and validates the mesh.

@@ -88,7 +88,7 @@ impl TexelGrid {
 
 /// Precomputed tables for one settings / layout / size: decomposing a map is then a sparse
 /// convolution, one projection and a few cap sums (the per-frame work; see
-/// [`bench_decompose`]).
+/// [`super::bench_decompose`]).
 #[derive(Clone, Debug)]
 pub struct Decomposer {
     s: DecomposeSettings,
