@@ -183,12 +183,23 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Decomposition of a 6 x 64 x 64 cube map (median of 9), and a 512 x 512 hybrid frame with 8
 /// lights on a ~100K-triangle scene (best of 3), area and point lights, 2048 and 1024 maps.
 fn bench_hybrid(quick: bool) {
-    use relight_render::hybrid::{build_shadow_maps, render_hybrid_with_maps, HybridLight, ShadowSettings};
-    let ms = median((0..9).map(|_| relight_sphere::decompose::bench_decompose()).collect());
+    use relight_render::hybrid::{
+        build_shadow_maps, render_hybrid_with_maps, HybridLight, ShadowSettings,
+    };
+    let ms = median(
+        (0..9)
+            .map(|_| relight_sphere::decompose::bench_decompose())
+            .collect(),
+    );
     println!("\n## Hybrid: environment decomposition, 6 x 64 x 64 cube map, 3 lights + sky");
-    println!("| ms per decomposition (median of 9) | per-frame budget |\n|---|---|\n| {ms:.2} | 5 ms |");
+    println!(
+        "| ms per decomposition (median of 9) | per-frame budget |\n|---|---|\n| {ms:.2} | 5 ms |"
+    );
     let mut mesh = relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 1.0, 0.0), 1.0, 150, 300);
-    mesh.append(&relight_scene::shapes::ground_plane(glam::Vec3::ZERO, 10.0, 70), 0);
+    mesh.append(
+        &relight_scene::shapes::ground_plane(glam::Vec3::ZERO, 10.0, 70),
+        0,
+    );
     let prt = vec![glam::Vec3::splat(0.1); mesh.vertex_count()];
     let albedo = vec![glam::Vec3::splat(0.6); mesh.vertex_count()];
     let camera = relight_scene::camera::Camera {
@@ -211,7 +222,9 @@ fn bench_hybrid(quick: bool) {
         .collect();
     let t0 = Instant::now();
     let opts = relight_render::raster::RasterOptions { supersample: 1 };
-    std::hint::black_box(relight_render::raster::render_with(&mesh, &camera, &prt, None, &opts));
+    std::hint::black_box(relight_render::raster::render_with(
+        &mesh, &camera, &prt, None, &opts,
+    ));
     let prt_ms = t0.elapsed().as_secs_f64() * 1e3;
     println!(
         "\n## Hybrid frame: 512 x 512, {} triangles, 8 lights (best of {})",
@@ -220,13 +233,19 @@ fn bench_hybrid(quick: bool) {
     );
     println!("| shadow maps | lights | 8 shadow maps (ms) | shading (ms) | frame (ms) | PRT-only frame (ms) |\n|---|---|---|---|---|---|");
     for (map_size, area_light) in [(2048, true), (2048, false), (1024, true), (1024, false)] {
-        let s = ShadowSettings { map_size, area_light, ..Default::default() };
+        let s = ShadowSettings {
+            map_size,
+            area_light,
+            ..Default::default()
+        };
         let mut best = (f64::MAX, f64::MAX);
         for _ in 0..if quick { 1 } else { 3 } {
             let t0 = Instant::now();
             let maps = build_shadow_maps(&mesh, &lights, &s);
             let t1 = Instant::now();
-            std::hint::black_box(render_hybrid_with_maps(&mesh, &camera, &prt, &albedo, &lights, &maps, &s, None, 1));
+            std::hint::black_box(render_hybrid_with_maps(
+                &mesh, &camera, &prt, &albedo, &lights, &maps, &s, None, 1,
+            ));
             let t2 = Instant::now();
             let (a, b) = ((t1 - t0).as_secs_f64() * 1e3, (t2 - t1).as_secs_f64() * 1e3);
             if a + b < best.0 + best.1 {
@@ -235,7 +254,11 @@ fn bench_hybrid(quick: bool) {
         }
         println!(
             "| {map_size} | {} | {:.0} | {:.0} | {:.0} | {prt_ms:.0} |",
-            if area_light { "area (PCSS)" } else { "point (PCF)" },
+            if area_light {
+                "area (PCSS)"
+            } else {
+                "point (PCF)"
+            },
             best.0,
             best.1,
             best.0 + best.1
@@ -247,10 +270,14 @@ fn bench_hybrid(quick: bool) {
 /// `PrefilteredEnv::build`) and with the per-face jobs on rayon's pool.
 fn bench_prefilter() {
     use relight_sphere::cubemap::CubeFace;
-    use relight_sphere::env_prefilter::{default_levels, prefilter_face, PrefilterOptions, PrefilteredEnv, SourcePyramid};
+    use relight_sphere::env_prefilter::{
+        default_levels, prefilter_face, PrefilterOptions, PrefilteredEnv, SourcePyramid,
+    };
     let sequential = relight_sphere::env_prefilter::bench_prefilter();
     let map = relight_sphere::EnvMap::cube_from_fn(256, |d| {
-        glam::Vec3::splat(0.2 + d.y.max(0.0)) + glam::Vec3::splat(50.0) * (d.dot(glam::Vec3::new(0.3, 0.8, 0.5).normalize()) > 0.999) as u8 as f32
+        glam::Vec3::splat(0.2 + d.y.max(0.0))
+            + glam::Vec3::splat(50.0)
+                * (d.dot(glam::Vec3::new(0.3, 0.8, 0.5).normalize()) > 0.999) as u8 as f32
     });
     let levels = default_levels(256, 8);
     let opts = PrefilterOptions::default();
@@ -262,7 +289,9 @@ fn bench_prefilter() {
             let mut v = vec![glam::Vec3::ZERO; 6 * l.size * l.size];
             v.par_chunks_mut(l.size * l.size)
                 .enumerate()
-                .for_each(|(f, chunk)| prefilter_face(&pyr, l, &opts, CubeFace::from_index(f), chunk));
+                .for_each(|(f, chunk)| {
+                    prefilter_face(&pyr, l, &opts, CubeFace::from_index(f), chunk)
+                });
             v
         })
         .collect();

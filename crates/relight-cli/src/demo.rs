@@ -230,7 +230,13 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// Rows of (PRT | reference | error heat map), 4-pixel gaps, dark grey background, labelled.
-fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap, order: usize, spp: u32) -> Result<()> {
+fn write_contact_sheet(
+    path: &Path,
+    rows: &[Row],
+    tm: &ToneMap,
+    order: usize,
+    spp: u32,
+) -> Result<()> {
     let (w, h) = (rows[0].prt.width, rows[0].prt.height);
     let gap = 4;
     let (sw, sh) = (5 * w + 6 * gap, rows.len() * h + (rows.len() + 1) * gap);
@@ -244,11 +250,17 @@ fn write_contact_sheet(path: &Path, rows: &[Row], tm: &ToneMap, order: usize, sp
             compare::heatmap(&row.hybrid, &row.reference),
         ];
         let labels = [
-            format!("SH PRT ORDER {order}, SKY {:.0}°, {:.1} MS", row.rotate, row.relight_ms),
+            format!(
+                "SH PRT ORDER {order}, SKY {:.0}°, {:.1} MS",
+                row.rotate, row.relight_ms
+            ),
             format!("HYBRID, {} LIGHTS", row.lights),
             format!("PATH TRACED {spp} SPP, {:.1} S", row.reference_s),
             format!("SH ERROR, REL. RMSE {:.1}%", 100.0 * row.metrics.rel_rmse),
-            format!("HYBRID ERROR, REL. RMSE {:.1}%", 100.0 * row.hybrid_metrics.rel_rmse),
+            format!(
+                "HYBRID ERROR, REL. RMSE {:.1}%",
+                100.0 * row.hybrid_metrics.rel_rmse
+            ),
         ];
         for (c, (panel, label)) in panels.iter().zip(&labels).enumerate() {
             let (x0, y0) = (gap + c * (w + gap), gap + r * (h + gap));
@@ -302,7 +314,10 @@ so it is a little dark where the reference has sunlight reflected by the ground.
     );
     h.push_str("<table><tr><th>sky rotation</th><th>method</th><th>relight (ms)</th><th>reference (s)</th><th>relative RMSE</th><th>RMSE</th><th>PSNR (dB)</th><th>mean |ΔY| (Table 5.1)</th><th>std |ΔY|</th></tr>");
     for r in rows {
-        for (name, m, ms) in [("SH PRT", &r.metrics, format!("{:.2}", r.relight_ms)), ("hybrid", &r.hybrid_metrics, format!("{} lights", r.lights))] {
+        for (name, m, ms) in [
+            ("SH PRT", &r.metrics, format!("{:.2}", r.relight_ms)),
+            ("hybrid", &r.hybrid_metrics, format!("{} lights", r.lights)),
+        ] {
             let _ = write!(
                 h,
                 "<tr><td>{:.0}°</td><td>{name}</td><td>{ms}</td><td>{:.1}</td><td>{:.2} %</td><td>{:.4}</td><td>{:.1}</td><td>{:.4}</td><td>{:.4}</td></tr>",

@@ -84,7 +84,10 @@ pub struct EvalRow {
 
 /// File stem as a string.
 pub fn stem(p: &std::path::Path) -> String {
-    p.file_stem().unwrap_or_default().to_string_lossy().to_string()
+    p.file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string()
 }
 
 fn truncate(t: &ShTransfer, order: usize) -> ShTransfer {
@@ -93,7 +96,13 @@ fn truncate(t: &ShTransfer, order: usize) -> ShTransfer {
     for v in 0..t.vertex_count {
         data.extend_from_slice(&t.data[v * n_old * c..(v * n_old + n_new) * c]);
     }
-    ShTransfer { order, kind: t.kind, vertex_count: t.vertex_count, channels: c, data }
+    ShTransfer {
+        order,
+        kind: t.kind,
+        vertex_count: t.vertex_count,
+        channels: c,
+        data,
+    }
 }
 
 /// Run `relight eval`.
@@ -105,21 +114,38 @@ pub fn run(a: Args) -> Result<()> {
         m => bail!("unknown --method '{m}' (sh, hybrid)"),
     }
     if a.min_order < 1 || a.min_order > a.max_order || a.max_order > relight_sphere::sh::MAX_ORDER {
-        bail!("orders {}..={} are not a valid range in 1..={}", a.min_order, a.max_order, relight_sphere::sh::MAX_ORDER);
+        bail!(
+            "orders {}..={} are not a valid range in 1..={}",
+            a.min_order,
+            a.max_order,
+            relight_sphere::sh::MAX_ORDER
+        );
     }
-    let python = mitsuba::mitsuba_python().map_err(|e| anyhow!("Mitsuba 3 is needed for `relight eval` (run scripts/setup.sh): {e}"))?;
+    let python = mitsuba::mitsuba_python().map_err(|e| {
+        anyhow!("Mitsuba 3 is needed for `relight eval` (run scripts/setup.sh): {e}")
+    })?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let mut rows: Vec<EvalRow> = Vec::new();
     for scene_path in &a.scenes {
         let base = SceneDesc::read(scene_path)?;
-        let envs: Vec<Option<PathBuf>> = if a.env.is_empty() { vec![None] } else { a.env.iter().cloned().map(Some).collect() };
+        let envs: Vec<Option<PathBuf>> = if a.env.is_empty() {
+            vec![None]
+        } else {
+            a.env.iter().cloned().map(Some).collect()
+        };
         for env in envs {
             let mut desc = base.clone();
             if let Some(e) = &env {
-                desc.environment = EnvDesc::File { path: e.clone(), layout: None, scale: None, rotate_y_deg: None };
+                desc.environment = EnvDesc::File {
+                    path: e.clone(),
+                    layout: None,
+                    scale: None,
+                    rotate_y_deg: None,
+                };
             }
             if let Some(w) = a.width {
-                desc.camera.height = (w as u64 * desc.camera.height as u64 / desc.camera.width as u64).max(1) as u32;
+                desc.camera.height =
+                    (w as u64 * desc.camera.height as u64 / desc.camera.width as u64).max(1) as u32;
                 desc.camera.width = w;
             }
             let env_name = match &desc.environment {
@@ -129,7 +155,11 @@ pub fn run(a: Args) -> Result<()> {
             };
             let tag = format!("{}_{}", stem(scene_path), env_name);
             let scene = desc.build(scene_path)?;
-            eprintln!("eval: {tag}: baking order {} ({} vertices)", a.max_order, scene.mesh.vertex_count());
+            eprintln!(
+                "eval: {tag}: baking order {} ({} vertices)",
+                a.max_order,
+                scene.mesh.vertex_count()
+            );
             let settings = ShBakeSettings {
                 order: a.max_order,
                 samples: a.samples,
@@ -138,14 +168,26 @@ pub fn run(a: Args) -> Result<()> {
                 threads: None,
                 progress: true,
             };
-            let baked: ShBake = crate::bake::bake_scene(&desc, &scene, &settings, crate::bake::parse_backend(None)?, false, scene_path)?;
+            let baked: ShBake = crate::bake::bake_scene(
+                &desc,
+                &scene,
+                &settings,
+                crate::bake::parse_backend(None)?,
+                false,
+                scene_path,
+            )?;
             let dir = a.out.join(&tag);
             let (reference, mask, noise) = mask_and_reference(&python, &scene, &dir, a.spp)?;
-            let tm = ToneMap::Exponential { gamma: 1.0 / mean_lum(&reference, &mask).max(1e-6) as f32 };
+            let tm = ToneMap::Exponential {
+                gamma: 1.0 / mean_lum(&reference, &mask).max(1e-6) as f32,
+            };
             write_image(&dir.join("mitsuba.exr"), &reference, &tm)?;
             write_image(&dir.join("mitsuba.png"), &reference, &tm)?;
             for order in a.min_order..=a.max_order {
-                let mut b = ShBake { transfer: truncate(&baked.transfer, order), ..clone_bake(&baked) };
+                let mut b = ShBake {
+                    transfer: truncate(&baked.transfer, order),
+                    ..clone_bake(&baked)
+                };
                 b.settings.order = order;
                 let (img, _) = relight(&b, &scene.env, &scene.camera, Window::None, 4, true);
                 let (img_h, _) = relight(&b, &scene.env, &scene.camera, Window::Hann, 4, true);
@@ -173,12 +215,22 @@ pub fn run(a: Args) -> Result<()> {
         let _ = writeln!(
             md,
             "| {} | {} | {} | {:.2} % | {:.2} % | {:.4} | {:.4} | {:.2} % |",
-            r.scene, r.env, r.order, 100.0 * r.rel_rmse, 100.0 * r.rel_rmse_hann, r.mean_abs_lum_err, r.std_abs_lum_err, 100.0 * r.reference_noise
+            r.scene,
+            r.env,
+            r.order,
+            100.0 * r.rel_rmse,
+            100.0 * r.rel_rmse_hann,
+            r.mean_abs_lum_err,
+            r.std_abs_lum_err,
+            100.0 * r.reference_noise
         );
     }
     println!("{md}");
     relight_bundle::write_atomic(&a.out.join("results.md"), md.as_bytes())?;
-    relight_bundle::write_atomic(&a.out.join("results.json"), serde_json::to_string_pretty(&rows)?.as_bytes())?;
+    relight_bundle::write_atomic(
+        &a.out.join("results.json"),
+        serde_json::to_string_pretty(&rows)?.as_bytes(),
+    )?;
     println!("wrote {}", a.out.join("results.md").display());
     Ok(())
 }
@@ -195,24 +247,47 @@ pub fn mask_and_reference(
     let json = mitsuba::export_mitsuba(scene, &dir.join("mitsuba"), spp, 2)
         .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
     eprintln!("eval: {}: Mitsuba 3, {spp} spp x 2 seeds", dir.display());
-    let (imgs, report) = mitsuba::render_mitsuba(python, &json, &dir.join("mitsuba"), &[1, 2], None)
-        .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
+    let (imgs, report) =
+        mitsuba::render_mitsuba(python, &json, &dir.join("mitsuba"), &[1, 2], None)
+            .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
     eprintln!("eval: {}: {report}", dir.display());
     let reference = Image {
         width: imgs[0].width,
         height: imgs[0].height,
-        pixels: imgs[0].pixels.iter().zip(&imgs[1].pixels).map(|(x, y)| (*x + *y) * 0.5).collect(),
+        pixels: imgs[0]
+            .pixels
+            .iter()
+            .zip(&imgs[1].pixels)
+            .map(|(x, y)| (*x + *y) * 0.5)
+            .collect(),
     };
     let ones = vec![glam::Vec3::ONE; scene.mesh.vertex_count()];
-    let cover = raster::render_with(&scene.mesh, &scene.camera, &ones, None, &RasterOptions { supersample: 4 });
+    let cover = raster::render_with(
+        &scene.mesh,
+        &scene.camera,
+        &ones,
+        None,
+        &RasterOptions { supersample: 4 },
+    );
     let mask = cover.full_coverage_mask();
     let noise = compare::metrics(&imgs[0], &imgs[1], Some(&mask)).rel_rmse / 2.0;
     Ok((reference, mask, noise))
 }
 
 fn mean_lum(img: &Image, mask: &[bool]) -> f64 {
-    let (s, n) = img.pixels.iter().zip(mask).filter(|(_, &m)| m).fold((0.0, 0usize), |(s, n), (c, _)| (s + compare::luminance(*c) as f64, n + 1));
-    if n == 0 { 0.0 } else { s / n as f64 }
+    let (s, n) = img
+        .pixels
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| m)
+        .fold((0.0, 0usize), |(s, n), (c, _)| {
+            (s + compare::luminance(*c) as f64, n + 1)
+        });
+    if n == 0 {
+        0.0
+    } else {
+        s / n as f64
+    }
 }
 
 fn clone_bake(b: &ShBake) -> ShBake {
@@ -249,6 +324,8 @@ fn run_hybrid(a: &Args) -> Result<()> {
     } else {
         a.env.clone()
     };
-    crate::eval_hybrid::run(&scene, &envs, a.order, a.samples, a.spp, a.width, &a.hybrid, &a.out)?;
+    crate::eval_hybrid::run(
+        &scene, &envs, a.order, a.samples, a.spp, a.width, &a.hybrid, &a.out,
+    )?;
     Ok(())
 }

@@ -59,39 +59,78 @@ pub fn run(
     opts: &HybridOpts,
     out: &Path,
 ) -> Result<Vec<HybridRow>> {
-    let python = relight_render::mitsuba::mitsuba_python()
-        .map_err(|e| anyhow!("Mitsuba 3 is needed for `relight eval` (run scripts/setup.sh): {e}"))?;
+    let python = relight_render::mitsuba::mitsuba_python().map_err(|e| {
+        anyhow!("Mitsuba 3 is needed for `relight eval` (run scripts/setup.sh): {e}")
+    })?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let mut base = SceneDesc::read(scene_path)?;
     if let Some(w) = width {
-        base.camera.height = (w as u64 * base.camera.height as u64 / base.camera.width as u64).max(1) as u32;
+        base.camera.height =
+            (w as u64 * base.camera.height as u64 / base.camera.width as u64).max(1) as u32;
         base.camera.width = w;
     }
     // The bake does not depend on the environment: bake once.
     let scene0 = base.build(scene_path)?;
-    eprintln!("eval hybrid: baking order {order} ({} vertices)", scene0.mesh.vertex_count());
-    let settings = ShBakeSettings { order, samples, seed: 1, kind: ShTransferKind::Shadowed, threads: None, progress: true };
-    let baked = crate::bake::bake_scene(&base, &scene0, &settings, crate::bake::parse_backend(None)?, false, scene_path)?;
-    let thesis_opts = HybridOpts { thesis: true, ..opts.clone() };
+    eprintln!(
+        "eval hybrid: baking order {order} ({} vertices)",
+        scene0.mesh.vertex_count()
+    );
+    let settings = ShBakeSettings {
+        order,
+        samples,
+        seed: 1,
+        kind: ShTransferKind::Shadowed,
+        threads: None,
+        progress: true,
+    };
+    let baked = crate::bake::bake_scene(
+        &base,
+        &scene0,
+        &settings,
+        crate::bake::parse_backend(None)?,
+        false,
+        scene_path,
+    )?;
+    let thesis_opts = HybridOpts {
+        thesis: true,
+        ..opts.clone()
+    };
     let mut rows = Vec::new();
     for env_path in envs {
         let mut desc = base.clone();
-        desc.environment = EnvDesc::File { path: env_path.clone(), layout: None, scale: None, rotate_y_deg: None };
+        desc.environment = EnvDesc::File {
+            path: env_path.clone(),
+            layout: None,
+            scale: None,
+            rotate_y_deg: None,
+        };
         let env_name = stem(env_path);
         let scene = desc.build(scene_path)?;
         let dir = out.join(&env_name);
         let (reference, mask, noise) = mask_and_reference(&python, &scene, &dir, spp)?;
         let (sh_img, _) = relight(&baked, &scene.env, &scene.camera, Window::None, 4, true);
-        let (thesis_img, _, _) = relight_hybrid(&baked, &scene.env, &scene.camera, &thesis_opts, 4, true)?;
+        let (thesis_img, _, _) =
+            relight_hybrid(&baked, &scene.env, &scene.camera, &thesis_opts, 4, true)?;
         let (hyb_img, _, dec) = relight_hybrid(&baked, &scene.env, &scene.camera, opts, 4, true)?;
         let imgs: [&Image; 3] = [&sh_img, &thesis_img, &hyb_img];
-        let m: Vec<Metrics> = imgs.iter().map(|i| compare::metrics(i, &reference, Some(&mask))).collect();
+        let m: Vec<Metrics> = imgs
+            .iter()
+            .map(|i| compare::metrics(i, &reference, Some(&mask)))
+            .collect();
         let mean_y = {
-            let (s, n) = reference.pixels.iter().zip(&mask).filter(|(_, &k)| k)
-                .fold((0.0f64, 0usize), |(s, n), (c, _)| (s + compare::luminance(*c) as f64, n + 1));
+            let (s, n) = reference
+                .pixels
+                .iter()
+                .zip(&mask)
+                .filter(|(_, &k)| k)
+                .fold((0.0f64, 0usize), |(s, n), (c, _)| {
+                    (s + compare::luminance(*c) as f64, n + 1)
+                });
             s / n.max(1) as f64
         };
-        let tm = ToneMap::Exponential { gamma: (std::f64::consts::LN_2 / mean_y.max(1e-9)) as f32 };
+        let tm = ToneMap::Exponential {
+            gamma: (std::f64::consts::LN_2 / mean_y.max(1e-9)) as f32,
+        };
         write_image(&dir.join("mitsuba.png"), &reference, &tm)?;
         for (name, img) in METHODS.iter().zip(imgs) {
             write_image(&dir.join(format!("{name}.png")), img, &tm)?;
@@ -119,8 +158,16 @@ pub fn run(
             env: env_name,
             lights: dec.lights.len(),
             rel_rmse: [m[0].rel_rmse, m[1].rel_rmse, m[2].rel_rmse],
-            mean_abs_lum_err: [m[0].mean_abs_lum_err, m[1].mean_abs_lum_err, m[2].mean_abs_lum_err],
-            std_abs_lum_err: [m[0].std_abs_lum_err, m[1].std_abs_lum_err, m[2].std_abs_lum_err],
+            mean_abs_lum_err: [
+                m[0].mean_abs_lum_err,
+                m[1].mean_abs_lum_err,
+                m[2].mean_abs_lum_err,
+            ],
+            std_abs_lum_err: [
+                m[0].std_abs_lum_err,
+                m[1].std_abs_lum_err,
+                m[2].std_abs_lum_err,
+            ],
             reference_noise: noise,
         });
     }
@@ -128,7 +175,14 @@ pub fn run(
     Ok(rows)
 }
 
-fn write_outputs(out: &Path, scene: &Path, order: usize, samples: u32, spp: u32, rows: &[HybridRow]) -> Result<()> {
+fn write_outputs(
+    out: &Path,
+    scene: &Path,
+    order: usize,
+    samples: u32,
+    spp: u32,
+    rows: &[HybridRow],
+) -> Result<()> {
     let mut md = String::from(
         "| environment | lights | mean abs. lum. error: SH / thesis hybrid / relight hybrid | std: SH / thesis / relight | relative RMSE: SH / thesis / relight | hybrid vs SH (mean error) | reference noise |\n|---|---|---|---|---|---|---|\n",
     );
@@ -147,7 +201,10 @@ fn write_outputs(out: &Path, scene: &Path, order: usize, samples: u32, spp: u32,
     }
     println!("{md}");
     relight_bundle::write_atomic(&out.join("results.md"), md.as_bytes())?;
-    relight_bundle::write_atomic(&out.join("results.json"), serde_json::to_string_pretty(rows)?.as_bytes())?;
+    relight_bundle::write_atomic(
+        &out.join("results.json"),
+        serde_json::to_string_pretty(rows)?.as_bytes(),
+    )?;
     let mut h = format!(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>relight eval: hybrid</title>\
 <style>body{{font-family:sans-serif;margin:2em}}td,th{{padding:3px 8px}}img{{margin:2px}}</style></head><body>\
@@ -170,7 +227,11 @@ geometry; error maps share one scale per environment (25 % of the reference's me
     }
     h.push_str("</body></html>");
     relight_bundle::write_atomic(&out.join("report.html"), h.as_bytes())?;
-    println!("wrote {} and {}", out.join("results.md").display(), out.join("report.html").display());
+    println!(
+        "wrote {} and {}",
+        out.join("results.md").display(),
+        out.join("report.html").display()
+    );
     Ok(())
 }
 

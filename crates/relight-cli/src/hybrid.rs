@@ -73,9 +73,13 @@ impl HybridOpts {
             remove_caps: !self.thesis,
             ..DecomposeSettings::default()
         };
-        d.validate().map_err(|e| anyhow::anyhow!("hybrid settings: {e}"))?;
+        d.validate()
+            .map_err(|e| anyhow::anyhow!("hybrid settings: {e}"))?;
         if !(16..=16384).contains(&self.shadow_map_size) {
-            bail!("--shadow-map-size {} is not in 16..=16384", self.shadow_map_size);
+            bail!(
+                "--shadow-map-size {} is not in 16..=16384",
+                self.shadow_map_size
+            );
         }
         let s = ShadowSettings {
             map_size: self.shadow_map_size,
@@ -101,7 +105,8 @@ pub struct HybridTimes {
 pub fn decompose_env(env: &Environment, d: &DecomposeSettings) -> Result<Decomposition> {
     let dec = Decomposer::new(d, env.map.layout(), env.map.width(), env.map.height())
         .map_err(|e| anyhow::anyhow!("decomposition: {e}"))?;
-    dec.run(&env.map).map_err(|e| anyhow::anyhow!("decomposition: {e}"))
+    dec.run(&env.map)
+        .map_err(|e| anyhow::anyhow!("decomposition: {e}"))
 }
 
 /// Render a bake with the hybrid method.
@@ -146,7 +151,11 @@ pub fn relight_hybrid(
     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
     Ok((
         img,
-        HybridTimes { decompose_ms: ms(t0, t1), shade_ms: ms(t1, t2), render_ms: ms(t2, t3) },
+        HybridTimes {
+            decompose_ms: ms(t0, t1),
+            shade_ms: ms(t1, t2),
+            render_ms: ms(t2, t3),
+        },
         dec,
     ))
 }

@@ -214,7 +214,14 @@ pub fn run(a: Args) -> Result<()> {
             img
         }
         "hybrid" => {
-            let (img, t, dec) = crate::hybrid::relight_hybrid(&bake, &env, &camera, &a.hybrid, a.supersample, a.background)?;
+            let (img, t, dec) = crate::hybrid::relight_hybrid(
+                &bake,
+                &env,
+                &camera,
+                &a.hybrid,
+                a.supersample,
+                a.background,
+            )?;
             println!(
                 "hybrid: {} lights + SH order {}: decomposition {:.1} ms (once per environment), SH relight {:.2} ms, shadow maps + shading {:.1} ms",
                 dec.lights.len(),

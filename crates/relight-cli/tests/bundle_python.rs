@@ -11,7 +11,11 @@ fn python_with_numpy() -> Option<std::path::PathBuf> {
     }
     candidates.push("python3".into());
     candidates.into_iter().find(|p| {
-        Command::new(p).args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false)
+        Command::new(p)
+            .args(["-c", "import numpy"])
+            .output()
+            .map(|o| o.status.success())
+            .unwrap_or(false)
     })
 }
 
@@ -21,8 +25,12 @@ fn python_reader_in_docs_reads_a_baked_bundle() {
         eprintln!("SKIP: no Python with numpy (run scripts/setup.sh)");
         return;
     };
-    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/BUNDLE.md")).unwrap();
-    let start = doc.find("```python\n").expect("python block in docs/BUNDLE.md") + "```python\n".len();
+    let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/BUNDLE.md"))
+        .unwrap();
+    let start = doc
+        .find("```python\n")
+        .expect("python block in docs/BUNDLE.md")
+        + "```python\n".len();
     let code = &doc[start..start + doc[start..].find("```").unwrap()];
     let d = std::env::temp_dir().join(format!("relight-pybundle-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -37,7 +45,17 @@ fn python_reader_in_docs_reads_a_baked_bundle() {
     .unwrap();
     let bundle = d.join("s.relight");
     let o = Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args(["bake", scene.to_str().unwrap(), "-o", bundle.to_str().unwrap(), "--order", "3", "--samples", "8", "--f16"])
+        .args([
+            "bake",
+            scene.to_str().unwrap(),
+            "-o",
+            bundle.to_str().unwrap(),
+            "--order",
+            "3",
+            "--samples",
+            "8",
+            "--f16",
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -52,7 +70,12 @@ fn python_reader_in_docs_reads_a_baked_bundle() {
         bundle.to_str().unwrap()
     );
     let o = Command::new(&py).args(["-c", &script]).output().unwrap();
-    assert!(o.status.success(), "python: {}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "python: {}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
     // And a corrupted copy is rejected by the same reader.
     let mut bytes = std::fs::read(&bundle).unwrap();
     let n = bytes.len();

@@ -50,7 +50,17 @@ fn help_lists_every_subcommand() {
     let o = relight(&["--help"]);
     assert!(o.status.success());
     let s = String::from_utf8_lossy(&o.stdout);
-    for c in ["demo", "bake", "render", "reference", "export-mitsuba", "compare", "info", "project", "bench"] {
+    for c in [
+        "demo",
+        "bake",
+        "render",
+        "reference",
+        "export-mitsuba",
+        "compare",
+        "info",
+        "project",
+        "bench",
+    ] {
         assert!(s.contains(c), "--help misses {c}:\n{s}");
     }
 }
@@ -62,15 +72,29 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
     let bundle = d.join("f.relight");
     for transfer in ["unshadowed", "shadowed", "interreflected"] {
         let o = relight(&[
-            "bake", scene.to_str().unwrap(), "-o", bundle.to_str().unwrap(),
-            "--order", "3", "--samples", "64", "--transfer", transfer,
+            "bake",
+            scene.to_str().unwrap(),
+            "-o",
+            bundle.to_str().unwrap(),
+            "--order",
+            "3",
+            "--samples",
+            "64",
+            "--transfer",
+            transfer,
         ]);
         assert!(o.status.success(), "{}", stderr(&o));
         let exr = d.join(format!("f-{transfer}.exr"));
         let png = d.join(format!("f-{transfer}.png"));
         let o = relight(&[
-            "render", bundle.to_str().unwrap(), "-o", exr.to_str().unwrap(), "-o", png.to_str().unwrap(),
-            "--supersample", "1",
+            "render",
+            bundle.to_str().unwrap(),
+            "-o",
+            exr.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--supersample",
+            "1",
         ]);
         assert!(o.status.success(), "{}", stderr(&o));
         assert!(png.is_file());
@@ -82,7 +106,10 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
         // see itself.
         let c = px[16 * 48 + 24];
         for ch in c {
-            assert!((ch - 1.0).abs() < 1e-4, "{transfer}: centre pixel {c:?}, expected 1");
+            assert!(
+                (ch - 1.0).abs() < 1e-4,
+                "{transfer}: centre pixel {c:?}, expected 1"
+            );
         }
         // Corners miss the sphere: black (no --background).
         assert_eq!(px[0], [0.0; 3]);
@@ -90,7 +117,10 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
     let o = relight(&["info", bundle.to_str().unwrap()]);
     assert!(o.status.success());
     let s = String::from_utf8_lossy(&o.stdout);
-    assert!(s.contains("method: sh") && s.contains("transfer") && s.contains("checksums OK"), "{s}");
+    assert!(
+        s.contains("method: sh") && s.contains("transfer") && s.contains("checksums OK"),
+        "{s}"
+    );
 }
 
 #[test]
@@ -100,13 +130,34 @@ fn rotating_the_environment_does_not_rebake_and_is_consistent() {
     let d = tmpdir("rotate");
     let scene = furnace_scene(&d);
     let bundle = d.join("r.relight");
-    assert!(relight(&["bake", scene.to_str().unwrap(), "-o", bundle.to_str().unwrap(), "--samples", "16"])
-        .status
-        .success());
+    assert!(relight(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        bundle.to_str().unwrap(),
+        "--samples",
+        "16"
+    ])
+    .status
+    .success());
     let a = d.join("a.exr");
     let b = d.join("b.exr");
-    assert!(relight(&["render", bundle.to_str().unwrap(), "-o", a.to_str().unwrap()]).status.success());
-    let o = relight(&["render", bundle.to_str().unwrap(), "--rotate-env", "-73", "-o", b.to_str().unwrap()]);
+    assert!(relight(&[
+        "render",
+        bundle.to_str().unwrap(),
+        "-o",
+        a.to_str().unwrap()
+    ])
+    .status
+    .success());
+    let o = relight(&[
+        "render",
+        bundle.to_str().unwrap(),
+        "--rotate-env",
+        "-73",
+        "-o",
+        b.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, _, pa) = read_exr_pixels(&a);
     let (_, _, pb) = read_exr_pixels(&b);
@@ -115,7 +166,13 @@ fn rotating_the_environment_does_not_rebake_and_is_consistent() {
             assert!((x[c] - y[c]).abs() < 1e-4);
         }
     }
-    let o = relight(&["compare", a.to_str().unwrap(), b.to_str().unwrap(), "--heatmap", d.join("h.png").to_str().unwrap()]);
+    let o = relight(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--heatmap",
+        d.join("h.png").to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("h.png").is_file());
 }
@@ -123,9 +180,16 @@ fn rotating_the_environment_does_not_rebake_and_is_consistent() {
 fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
     assert!(!o.status.success(), "expected failure");
     let e = stderr(o);
-    assert!(e.contains(must_name), "error does not name {must_name}: {e}");
+    assert!(
+        e.contains(must_name),
+        "error does not name {must_name}: {e}"
+    );
     assert!(!e.contains("panicked"), "panic instead of an error: {e}");
-    assert!(!out.exists(), "partial output {} left behind", out.display());
+    assert!(
+        !out.exists(),
+        "partial output {} left behind",
+        out.display()
+    );
 }
 
 #[test]
@@ -133,9 +197,16 @@ fn corrupt_or_truncated_bundle_is_refused_without_output() {
     let d = tmpdir("badbundle");
     let scene = furnace_scene(&d);
     let bundle = d.join("b.relight");
-    assert!(relight(&["bake", scene.to_str().unwrap(), "-o", bundle.to_str().unwrap(), "--samples", "16"])
-        .status
-        .success());
+    assert!(relight(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        bundle.to_str().unwrap(),
+        "--samples",
+        "16"
+    ])
+    .status
+    .success());
     let bytes = std::fs::read(&bundle).unwrap();
     let out = d.join("never.png");
     // Truncated.
@@ -164,7 +235,12 @@ fn bad_scene_files_are_reported_with_their_name() {
     let d = tmpdir("badscene");
     let out = d.join("out.relight");
     // Missing file.
-    let o = relight(&["bake", d.join("missing.json").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = relight(&[
+        "bake",
+        d.join("missing.json").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "missing.json", &out);
     // Malformed JSON (with the line).
     let bad = d.join("bad.json");
@@ -180,11 +256,23 @@ fn bad_scene_files_are_reported_with_their_name() {
             "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0], "fov_deg": 40, "width": 8, "height": 8}}"#,
     )
     .unwrap();
-    let o = relight(&["bake", nomesh.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = relight(&[
+        "bake",
+        nomesh.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "nothere.obj", &out);
     // Absurd settings.
     let scene = furnace_scene(&d);
-    let o = relight(&["bake", scene.to_str().unwrap(), "-o", out.to_str().unwrap(), "--order", "99"]);
+    let o = relight(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--order",
+        "99",
+    ]);
     assert_clean_failure(&o, "order", &out);
 }
 
@@ -193,26 +281,60 @@ fn bad_environment_for_render_is_refused_without_output() {
     let d = tmpdir("badenv");
     let scene = furnace_scene(&d);
     let bundle = d.join("e.relight");
-    assert!(relight(&["bake", scene.to_str().unwrap(), "-o", bundle.to_str().unwrap(), "--samples", "16"])
-        .status
-        .success());
+    assert!(relight(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        bundle.to_str().unwrap(),
+        "--samples",
+        "16"
+    ])
+    .status
+    .success());
     // A latlong with a NaN and a negative pixel, written as EXR (which can hold them).
     let env = d.join("nan.exr");
     // relight's own EXR writer refuses such pixels, so write it with the exr crate directly.
     let write = |p: &Path, bad: f32| {
-        exr::prelude::write_rgb_file(p, 16, 8, |x, y| if (x, y) == (5, 0) { (bad, 1.0f32, 1.0f32) } else { (1.0, 1.0, 1.0) })
-            .unwrap()
+        exr::prelude::write_rgb_file(p, 16, 8, |x, y| {
+            if (x, y) == (5, 0) {
+                (bad, 1.0f32, 1.0f32)
+            } else {
+                (1.0, 1.0, 1.0)
+            }
+        })
+        .unwrap()
     };
     write(&env, f32::NAN);
     let out = d.join("never.exr");
-    let o = relight(&["render", bundle.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = relight(&[
+        "render",
+        bundle.to_str().unwrap(),
+        "--env",
+        env.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "nan.exr", &out);
     let env = d.join("negative.exr");
     write(&env, -1.0);
-    let o = relight(&["render", bundle.to_str().unwrap(), "--env", env.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = relight(&[
+        "render",
+        bundle.to_str().unwrap(),
+        "--env",
+        env.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "negative.exr", &out);
     // Missing environment.
-    let o = relight(&["render", bundle.to_str().unwrap(), "--env", "/nonexistent/sky.hdr", "-o", out.to_str().unwrap()]);
+    let o = relight(&[
+        "render",
+        bundle.to_str().unwrap(),
+        "--env",
+        "/nonexistent/sky.hdr",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "/nonexistent/sky.hdr", &out);
 }
 
@@ -227,4 +349,3 @@ fn compare_refuses_images_of_different_sizes() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("same size"));
 }
-

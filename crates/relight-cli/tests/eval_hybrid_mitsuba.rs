@@ -24,26 +24,61 @@ fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
     }
     let out = std::env::temp_dir().join(format!("relight-eval-hybrid-{}", std::process::id()));
     let o = Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args(["eval", "--method", "hybrid", "--samples", "256", "--spp", "64", "--width", "128", "--shadow-map-size", "1024", "--out"])
+        .args([
+            "eval",
+            "--method",
+            "hybrid",
+            "--samples",
+            "256",
+            "--spp",
+            "64",
+            "--width",
+            "128",
+            "--shadow-map-size",
+            "1024",
+            "--out",
+        ])
         .arg(&out)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rows: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();
     assert_eq!(rows.len(), 5, "five probes");
     assert!(out.join("report.html").is_file());
     let mut with_lights = 0;
     for r in rows {
         let env = r["env"].as_str().unwrap();
-        let m: Vec<f64> = r["mean_abs_lum_err"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let m: Vec<f64> = r["mean_abs_lum_err"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
         let lights = r["lights"].as_u64().unwrap();
-        eprintln!("{env}: {lights} lights, mean |dY| SH {:.4}, thesis {:.4}, relight hybrid {:.4}", m[0], m[1], m[2]);
-        assert!(m[2] <= 1.03 * m[0], "{env}: hybrid {} worse than SH-only {}", m[2], m[0]);
+        eprintln!(
+            "{env}: {lights} lights, mean |dY| SH {:.4}, thesis {:.4}, relight hybrid {:.4}",
+            m[0], m[1], m[2]
+        );
+        assert!(
+            m[2] <= 1.03 * m[0],
+            "{env}: hybrid {} worse than SH-only {}",
+            m[2],
+            m[0]
+        );
         if lights > 0 {
             with_lights += 1;
-            assert!(m[2] < m[1], "{env}: relight's hybrid {} not better than the thesis' {}", m[2], m[1]);
+            assert!(
+                m[2] < m[1],
+                "{env}: relight's hybrid {} not better than the thesis' {}",
+                m[2],
+                m[1]
+            );
         }
     }
-    assert!(with_lights >= 3, "lights found on only {with_lights} probes");
+    assert!(
+        with_lights >= 3,
+        "lights found on only {with_lights} probes"
+    );
 }

@@ -30,7 +30,19 @@ fn sh_prt_error_per_order_against_mitsuba() {
         let o = Command::new(env!("CARGO_BIN_EXE_relight"))
             .args(["eval", ex.join(scene).to_str().unwrap(), "--env"])
             .arg(shared.join(env))
-            .args(["--min-order", "2", "--max-order", "10", "--samples", "256", "--spp", "64", "--width", "96", "--out"])
+            .args([
+                "--min-order",
+                "2",
+                "--max-order",
+                "10",
+                "--samples",
+                "256",
+                "--spp",
+                "64",
+                "--width",
+                "96",
+                "--out",
+            ])
             .arg(&out)
             .output()
             .unwrap();
@@ -38,17 +50,35 @@ fn sh_prt_error_per_order_against_mitsuba() {
         let rows: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
         let rows = rows.as_array().unwrap();
-        let rel: Vec<f64> = rows.iter().map(|r| r["rel_rmse"].as_f64().unwrap()).collect();
+        let rel: Vec<f64> = rows
+            .iter()
+            .map(|r| r["rel_rmse"].as_f64().unwrap())
+            .collect();
         let noise = rows[0]["reference_noise"].as_f64().unwrap();
         eprintln!("{scene} under {env}: reference noise {noise:.4}, relative RMSE per order 2..10: {rel:.4?}");
         assert_eq!(rel.len(), 9);
         for w in rel.windows(2) {
             assert!(w[1] <= w[0] + 0.005, "error grows with the order: {rel:?}");
         }
-        assert!(rel[8] < rel[0], "order 10 ({}) not better than order 2 ({})", rel[8], rel[0]);
+        assert!(
+            rel[8] < rel[0],
+            "order 10 ({}) not better than order 2 ({})",
+            rel[8],
+            rel[0]
+        );
         let bound = 2.0 * noise + 0.03;
-        assert!(rel[8] <= bound, "order-10 relative RMSE {} above {bound} (noise {noise})", rel[8]);
+        assert!(
+            rel[8] <= bound,
+            "order-10 relative RMSE {} above {bound} (noise {noise})",
+            rel[8]
+        );
     };
-    run("bunny_grace.json", "data/envmaps/debevec_latlong_256x128/grace.hdr");
-    run("teapot_stpeters.json", "data/envmaps/debevec/stpeters_cross.hdr");
+    run(
+        "bunny_grace.json",
+        "data/envmaps/debevec_latlong_256x128/grace.hdr",
+    );
+    run(
+        "teapot_stpeters.json",
+        "data/envmaps/debevec/stpeters_cross.hdr",
+    );
 }

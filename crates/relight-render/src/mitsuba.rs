@@ -149,10 +149,14 @@ pub fn mitsuba_python() -> Result<PathBuf, String> {
     let py = std::env::var_os("RELIGHT_MITSUBA_PYTHON")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            let venv = std::env::var_os("RELIGHT_VENV").map(PathBuf::from).unwrap_or_else(|| {
-                let home = std::env::var_os("HOME").map(PathBuf::from).unwrap_or_else(|| "/root".into());
-                home.join(".cache/relight/venv")
-            });
+            let venv = std::env::var_os("RELIGHT_VENV")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| {
+                    let home = std::env::var_os("HOME")
+                        .map(PathBuf::from)
+                        .unwrap_or_else(|| "/root".into());
+                    home.join(".cache/relight/venv")
+                });
             venv.join("bin/python")
         });
     let out = Command::new(&py)

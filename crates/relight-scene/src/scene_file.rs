@@ -323,10 +323,7 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
                 ));
             }
             let t = 0.04 * height.max(*width);
-            (
-                shapes::table(*width, *depth, *height, t, t),
-                one(material),
-            )
+            (shapes::table(*width, *depth, *height, t, t), one(material))
         }
         ShapeDesc::Box { min, max, material } => (
             shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), 4),

@@ -41,7 +41,12 @@ pub trait SphericalBasis {
     /// Inner products `int L(w) B_i(w) dw` with the map's exact texel weights (f64
     /// accumulation). For an orthonormal basis these are the projection coefficients.
     fn project_env(&self, map: &EnvMap) -> Vec<Vec3> {
-        project_point_rule(map, self.coeff_count(), |d, o| self.eval_basis(d, o), |t| t.value)
+        project_point_rule(
+            map,
+            self.coeff_count(),
+            |d, o| self.eval_basis(d, o),
+            |t| t.value,
+        )
     }
 }
 

@@ -125,13 +125,26 @@ pub fn bilinear(width: usize, height: usize, dir: Vec3) -> [(usize, f32); 4] {
 ///
 /// # Panics
 /// Debug builds assert `height >= 2` and that the texel is inside the grid.
-pub fn texel_neighbours(width: usize, height: usize, col: usize, row: usize) -> [(usize, usize); 4] {
+pub fn texel_neighbours(
+    width: usize,
+    height: usize,
+    col: usize,
+    row: usize,
+) -> [(usize, usize); 4] {
     debug_assert!(height >= 2 && col < width && row < height);
     let left = (col + width - 1) % width;
     let right = (col + 1) % width;
     let opposite = (col + width / 2) % width;
-    let up = if row == 0 { (opposite, 1) } else { (col, row - 1) };
-    let down = if row + 1 == height { (opposite, height - 2) } else { (col, row + 1) };
+    let up = if row == 0 {
+        (opposite, 1)
+    } else {
+        (col, row - 1)
+    };
+    let down = if row + 1 == height {
+        (opposite, height - 2)
+    } else {
+        (col, row + 1)
+    };
     [(left, row), (right, row), up, down]
 }
 

@@ -255,14 +255,24 @@ pub fn project_env(map: &EnvMap, order: usize) -> Vec<Vec3> {
 /// Debug builds assert `order <= MAX_ORDER`.
 pub fn project_env_point_rule(map: &EnvMap, order: usize) -> Vec<Vec3> {
     debug_assert!(order <= MAX_ORDER);
-    project_point_rule(map, sh_count(order), |d, o| eval_sh(order, d, o), |t| t.value)
+    project_point_rule(
+        map,
+        sh_count(order),
+        |d, o| eval_sh(order, d, o),
+        |t| t.value,
+    )
 }
 
 /// Projects a function of direction (e.g. an analytic radiance) with the quadrature of `map`'s
 /// texels (values of `map` are ignored; only its directions and weights are used).
 pub fn project_fn(grid: &EnvMap, order: usize, f: impl Fn(Vec3) -> Vec3) -> Vec<Vec3> {
     debug_assert!(order <= MAX_ORDER);
-    project_point_rule(grid, sh_count(order), |d, o| eval_sh(order, d, o), |t| f(t.dir))
+    project_point_rule(
+        grid,
+        sh_count(order),
+        |d, o| eval_sh(order, d, o),
+        |t| f(t.dir),
+    )
 }
 
 /// Reconstruction `sum_lm c_lm Y_lm(dir)`; the order is `sqrt(coeffs.len())`.

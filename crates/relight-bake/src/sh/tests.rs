@@ -491,7 +491,10 @@ fn bake_bunny_figures() {
         let t = bake(&mesh, &mats, caster.as_ref(), &s).unwrap();
         let secs = t0.elapsed().as_secs_f64();
         let rays = (mesh.vertex_count() as u64 * 256 * kind.ray_passes()) as f64;
-        println!("{kind:?}: {secs:.2} s ({:.2} M vertex-directions/s)", rays / secs / 1e6);
+        println!(
+            "{kind:?}: {secs:.2} s ({:.2} M vertex-directions/s)",
+            rays / secs / 1e6
+        );
         t.validate().unwrap();
     }
 }

@@ -175,7 +175,8 @@ pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
     let mut materials = Vec::with_capacity(doc.materials.len() + 1);
     for (i, m) in doc.materials.iter().enumerate() {
         let m = to_material(m);
-        m.validate().map_err(|e| r.err(format!("material {i}: {e}")))?;
+        m.validate()
+            .map_err(|e| r.err(format!("material {i}: {e}")))?;
         materials.push(m);
     }
     let default_id = materials.len() as u32;

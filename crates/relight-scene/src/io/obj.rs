@@ -101,7 +101,11 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
                 let name = line["mtllib".len()..].trim();
                 let mtl = path.parent().unwrap_or(Path::new(".")).join(name);
                 match std::fs::read(&mtl) {
-                    Ok(bytes) => library.extend(parse_mtl(&mtl, &String::from_utf8_lossy(&bytes), &mut warnings)?),
+                    Ok(bytes) => library.extend(parse_mtl(
+                        &mtl,
+                        &String::from_utf8_lossy(&bytes),
+                        &mut warnings,
+                    )?),
                     Err(e) => warnings.push(format!(
                         "{}: line {ln}: material library {}: {e}; using the default material",
                         path.display(),
@@ -330,19 +334,48 @@ mod tests {
     #[test]
     fn invalid_mtl_material_is_an_error_at_its_line() {
         let dir = temp_dir("objmtlbad");
-        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 1.5 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
-        let e = load_mesh(&write(&dir, "q.obj", &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"))).unwrap_err();
-        assert!(e.to_string().contains("m.mtl: line 2: material 'hot'"), "{e}");
+        write(
+            &dir,
+            "m.mtl",
+            "# lib\nnewmtl hot\nKd 1.5 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n",
+        );
+        let e = load_mesh(&write(
+            &dir,
+            "q.obj",
+            &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"),
+        ))
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("m.mtl: line 2: material 'hot'"),
+            "{e}"
+        );
     }
 
     #[test]
     fn mtl_above_unit_energy_is_rescaled_with_a_warning() {
         let dir = temp_dir("objmtlhot");
-        write(&dir, "m.mtl", "# lib\nnewmtl hot\nKd 0.9 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n");
-        let m = load_mesh(&write(&dir, "q.obj", &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"))).unwrap();
-        assert!(m.warnings.iter().any(|w| w.contains("m.mtl: line 2") && w.contains("exceeds 1")), "{:?}", m.warnings);
+        write(
+            &dir,
+            "m.mtl",
+            "# lib\nnewmtl hot\nKd 0.9 0.9 0.9\nKs 0.5 0.5 0.5\nNs 10\n",
+        );
+        let m = load_mesh(&write(
+            &dir,
+            "q.obj",
+            &format!("mtllib m.mtl\n{QUAD}usemtl hot\nf 1 2 3\n"),
+        ))
+        .unwrap();
+        assert!(
+            m.warnings
+                .iter()
+                .any(|w| w.contains("m.mtl: line 2") && w.contains("exceeds 1")),
+            "{:?}",
+            m.warnings
+        );
         match m.materials[0] {
-            Material::BlinnPhong { diffuse, specular, .. } => {
+            Material::BlinnPhong {
+                diffuse, specular, ..
+            } => {
                 assert!(((diffuse + specular).max_element() - 1.0).abs() < 1e-6);
                 assert!((diffuse.x / specular.x - 0.9 / 0.5).abs() < 1e-5);
             }
