@@ -197,6 +197,26 @@ pub fn eval_sh_slow(order: usize, dir: Vec3, out: &mut [f64]) {
     let (x, y, z) = (dir.x as f64, dir.y as f64, dir.z as f64);
     let sin_t = (x * x + y * y).sqrt();
     let phi = y.atan2(x);
+    legendre_factors(order, z, sin_t, |l, m, v| {
+        if m == 0 {
+            out[sh_index(l, 0)] = v;
+        } else {
+            out[sh_index(l, m)] = v * (m as f64 * phi).cos();
+            out[sh_index(l, -m)] = v * (m as f64 * phi).sin();
+        }
+    });
+}
+
+/// The polar part of [`eval_sh_slow`]: for `0 <= m <= l < order`, calls
+/// `emit(l, m, K_l^m P_l^m(z))` (times `sqrt 2` when `m > 0`, the real basis' factor), with
+/// explicit factorials in `K_l^m` and the unnormalised associated Legendre recurrence, in f64.
+/// `sin_t` is `sin(theta)` (passed in so callers control its rounding).
+pub(crate) fn legendre_factors(
+    order: usize,
+    z: f64,
+    sin_t: f64,
+    mut emit: impl FnMut(i32, i32, f64),
+) {
     let fact = |k: i32| (1..=k).fold(1.0f64, |a, i| a * i as f64);
     for m in 0..order as i32 {
         // P_l^m(z) for l = m.. by the classic recurrence.
@@ -217,13 +237,7 @@ pub fn eval_sh_slow(order: usize, dir: Vec3, out: &mut [f64]) {
                 p = next;
             }
             let k = ((2 * l + 1) as f64 / (4.0 * PI) * fact(l - m) / fact(l + m)).sqrt();
-            if m == 0 {
-                out[sh_index(l, 0)] = k * p;
-            } else {
-                let s = 2f64.sqrt() * k * p;
-                out[sh_index(l, m)] = s * (m as f64 * phi).cos();
-                out[sh_index(l, -m)] = s * (m as f64 * phi).sin();
-            }
+            emit(l, m, if m == 0 { k * p } else { 2f64.sqrt() * k * p });
         }
     }
 }

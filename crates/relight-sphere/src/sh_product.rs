@@ -183,27 +183,7 @@ impl ShProduct {
 /// [`crate::sh::eval_sh_slow`], taking an exact f64 `z`), written to `out[sh_index(l, m)]`.
 fn polar_factors(order: usize, z: f64, out: &mut [f64]) {
     let s = (1.0 - z * z).max(0.0).sqrt();
-    let fact = |k: i32| (1..=k).fold(1.0f64, |a, i| a * i as f64);
-    for m in 0..order as i32 {
-        let mut pmm = 1.0;
-        for k in 1..=m {
-            pmm *= (2 * k - 1) as f64 * s;
-        }
-        let (mut p_prev, mut p) = (0.0, pmm);
-        for l in m..order as i32 {
-            if l == m + 1 {
-                p_prev = p;
-                p = (2 * m + 1) as f64 * z * pmm;
-            } else if l > m + 1 {
-                let next =
-                    ((2 * l - 1) as f64 * z * p - (l + m - 1) as f64 * p_prev) / (l - m) as f64;
-                p_prev = p;
-                p = next;
-            }
-            let k = ((2 * l + 1) as f64 / (4.0 * PI) * fact(l - m) / fact(l + m)).sqrt();
-            out[sh_index(l, m)] = if m == 0 { k * p } else { 2f64.sqrt() * k * p };
-        }
-    }
+    crate::sh::legendre_factors(order, z, s, |l, m, v| out[sh_index(l, m)] = v);
 }
 
 #[cfg(test)]
