@@ -10,10 +10,13 @@
 //! channel innermost), with the light held in L1 in SIMD-ready form: for single-channel
 //! transfer, per-channel planes of 4 coefficients (one 4-wide multiply-add per channel per 4
 //! coefficients, two accumulators per channel); for RGB transfer, one `Vec3A` per coefficient
-//! (one multiply-add of the RGB triple, four accumulators to hide add latency). On one core
-//! an order-5 single-channel vertex costs about 10 ns, below the ~12 ns its 124 bytes take at
-//! 10 GB/s, so a frame is memory-bandwidth bound: [`bench_relight`] measures it against a STREAM-like
-//! copy (McCalpin's STREAM "Copy" kernel, bytes counted as read + written) on the same
+//! (one multiply-add of the RGB triple, four accumulators to hide add latency). That portable
+//! single-channel kernel turned out compute-bound (about 40 cycles per order-5 vertex per core,
+//! the same in and out of cache), so on CPUs with AVX2 and FMA a run-time-selected kernel
+//! (`shade_sh_avx2.rs`: 8-wide fused multiply-adds against zero-padded light planes) does the
+//! single-channel case, which makes a frame memory-bandwidth bound: [`bench_relight`] measures
+//! it against a STREAM-like copy (McCalpin's STREAM "Copy" kernel, bytes counted as read +
+//! written) on the same
 //! machine in the same run.
 
 use glam::{Vec3, Vec3A, Vec4};
@@ -24,6 +27,16 @@ use std::time::Instant;
 
 /// Vertices per parallel work item.
 const CHUNK: usize = 2048;
+
+#[cfg(target_arch = "x86_64")]
+#[path = "shade_sh_avx2.rs"]
+mod avx2;
+
+/// `RELIGHT_PORTABLE_KERNELS=1` disables the run-time-selected SIMD kernels (for comparisons
+/// and for machines where they misbehave).
+fn force_portable() -> bool {
+    std::env::var_os("RELIGHT_PORTABLE_KERNELS").is_some_and(|v| v == "1")
+}
 
 /// Outgoing radiance of every vertex under SH lighting `light`, written to `out`.
 ///
@@ -49,11 +62,29 @@ pub fn vertex_radiance(
         light.len()
     );
     debug_assert_eq!(transfer.data.len(), transfer.vertex_count * stride);
+    let light_coeffs = light;
     match transfer.channels {
         1 => {
             let light = MonoLight::new(&light[..n2]);
             if let Some(a) = albedo_per_vertex {
                 assert_eq!(a.len(), transfer.vertex_count, "one albedo per vertex");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if avx2::available() && !force_portable() {
+                let planes = avx2::Planes::new(&light_coeffs[..n2]);
+                out.par_chunks_mut(CHUNK)
+                    .zip(transfer.data.par_chunks(CHUNK * stride))
+                    .enumerate()
+                    .for_each(|(ci, (out, data))| {
+                        let albedo =
+                            albedo_per_vertex.map(|a| &a[ci * CHUNK..ci * CHUNK + out.len()]);
+                        // SAFETY: AVX2 and FMA were detected above; transfer data is finite
+                        // (`ShTransfer::validate`, checked for every baked or loaded bundle).
+                        unsafe {
+                            avx2::shade_slice(data, stride, &planes, albedo, out, |t| light.dot(t))
+                        }
+                    });
+                return;
             }
             out.par_chunks_mut(CHUNK)
                 .zip(transfer.data.par_chunks(CHUNK * stride))
@@ -309,6 +340,36 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    /// The run-time-selected AVX2/FMA kernel against the portable one, on every vertex
+    /// (including the last vertex of each work slice, which falls back to the portable path).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_kernel_matches_the_portable_one_on_every_vertex() {
+        if !avx2::available() {
+            eprintln!("SKIP: no AVX2/FMA on this CPU");
+            return;
+        }
+        let n = CHUNK + 301;
+        for order in [1, 2, 3, 4, 5, 6, 9, 10] {
+            let t = synthetic(order, ShTransferKind::Shadowed, n);
+            let light: Vec<Vec3> = (0..sh_count(order))
+                .map(|i| Vec3::new(0.3 + i as f32, 1.0 - 0.07 * i as f32, (i as f32).cos()))
+                .collect();
+            let albedo: Vec<Vec3> = (0..n).map(|v| Vec3::splat((v % 7) as f32 / 7.0)).collect();
+            let fast = shade(&t, Some(&albedo), &light);
+            let mono = MonoLight::new(&light);
+            let scale = light.iter().map(|l| l.abs().max_element()).sum::<f32>();
+            for v in 0..n {
+                let slow = albedo[v] * Vec3::from(mono.dot(t.vertex(v)));
+                assert!(
+                    (fast[v] - slow).abs().max_element() <= 1e-5 * scale,
+                    "order {order} v{v}: {} vs {slow}",
+                    fast[v]
+                );
             }
         }
     }
