@@ -110,7 +110,8 @@ impl ShBake {
             serde_json::from_str(b.meta(path, "scene")?).with_context(|| ctx("scene"))?;
         let materials: Vec<Material> =
             serde_json::from_str(b.meta(path, "materials")?).with_context(|| ctx("materials"))?;
-        let f32s = |name: &str, shape: &[usize]| -> Result<Vec<f32>> {
+        // A required tensor of the expected shape.
+        let shaped = |name: &str, shape: &[usize]| -> Result<&Tensor> {
             let t = b.tensor(path, name)?;
             if t.shape != shape {
                 bail!(
@@ -120,21 +121,16 @@ impl ShBake {
                     shape
                 );
             }
-            t.to_f32().with_context(|| {
+            Ok(t)
+        };
+        let f32s = |name: &str, shape: &[usize]| -> Result<Vec<f32>> {
+            shaped(name, shape)?.to_f32().with_context(|| {
                 format!("{}: tensor '{name}' is not floating point", path.display())
             })
         };
         let u32s = |name: &str, shape: &[usize]| -> Result<Vec<u32>> {
-            let t = b.tensor(path, name)?;
-            if t.shape != shape {
-                bail!(
-                    "{}: tensor '{name}' has shape {:?}, expected {:?}",
-                    path.display(),
-                    t.shape,
-                    shape
-                );
-            }
-            t.to_u32()
+            shaped(name, shape)?
+                .to_u32()
                 .with_context(|| format!("{}: tensor '{name}' is not U32", path.display()))
         };
         let v = b

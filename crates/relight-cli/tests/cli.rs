@@ -40,6 +40,19 @@ fn furnace_scene(dir: &Path) -> PathBuf {
     p
 }
 
+/// Bake `scene` into `bundle` with few samples (the closed forms below do not depend on them).
+fn bake_quick(scene: &Path, bundle: &Path) {
+    let o = relight(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "-o",
+        bundle.to_str().unwrap(),
+        "--samples",
+        "16",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 fn read_exr_pixels(p: &Path) -> (usize, usize, Vec<[f32; 3]>) {
     let (w, h, px) = relight_scene::io::image::read_image(p).unwrap();
     (w, h, px.iter().map(|c| c.to_array()).collect())
@@ -130,16 +143,7 @@ fn rotating_the_environment_does_not_rebake_and_is_consistent() {
     let d = tmpdir("rotate");
     let scene = furnace_scene(&d);
     let bundle = d.join("r.relight");
-    assert!(relight(&[
-        "bake",
-        scene.to_str().unwrap(),
-        "-o",
-        bundle.to_str().unwrap(),
-        "--samples",
-        "16"
-    ])
-    .status
-    .success());
+    bake_quick(&scene, &bundle);
     let a = d.join("a.exr");
     let b = d.join("b.exr");
     assert!(relight(&[
@@ -197,16 +201,7 @@ fn corrupt_or_truncated_bundle_is_refused_without_output() {
     let d = tmpdir("badbundle");
     let scene = furnace_scene(&d);
     let bundle = d.join("b.relight");
-    assert!(relight(&[
-        "bake",
-        scene.to_str().unwrap(),
-        "-o",
-        bundle.to_str().unwrap(),
-        "--samples",
-        "16"
-    ])
-    .status
-    .success());
+    bake_quick(&scene, &bundle);
     let bytes = std::fs::read(&bundle).unwrap();
     let out = d.join("never.png");
     // Truncated.
@@ -281,16 +276,7 @@ fn bad_environment_for_render_is_refused_without_output() {
     let d = tmpdir("badenv");
     let scene = furnace_scene(&d);
     let bundle = d.join("e.relight");
-    assert!(relight(&[
-        "bake",
-        scene.to_str().unwrap(),
-        "-o",
-        bundle.to_str().unwrap(),
-        "--samples",
-        "16"
-    ])
-    .status
-    .success());
+    bake_quick(&scene, &bundle);
     // A latlong with a NaN and a negative pixel, written as EXR (which can hold them).
     let env = d.join("nan.exr");
     // relight's own EXR writer refuses such pixels, so write it with the exr crate directly.

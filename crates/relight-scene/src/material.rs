@@ -163,9 +163,8 @@ impl Material {
                 (diffuse * FRAC_1_PI + specular * lobe) * co
             }
             Material::GgxConductor { specular, alpha } => {
-                let h = (wi + wo).normalize();
-                let g = mf::smith_g1(wi, h, alpha) * mf::smith_g1(wo, h, alpha);
-                specular * (mf::ggx_d(h, alpha) * g / (4.0 * ci))
+                let (_, dg) = ggx_reflection(wi, wo, alpha);
+                specular * dg
             }
             Material::GgxPlastic {
                 diffuse,
@@ -174,10 +173,8 @@ impl Material {
                 ior,
             } => {
                 let t = PlasticTables::get(alpha, ior);
-                let h = (wi + wo).normalize();
-                let g = mf::smith_g1(wi, h, alpha) * mf::smith_g1(wo, h, alpha);
-                let f = mf::fresnel_dielectric(wi.dot(h), ior);
-                let spec = specular * (f * mf::ggx_d(h, alpha) * g / (4.0 * ci));
+                let (h, dg) = ggx_reflection(wi, wo, alpha);
+                let spec = specular * (mf::fresnel_dielectric(wi.dot(h), ior) * dg);
                 let diff = diffuse / (1.0 - t.internal_reflectance)
                     * (FRAC_1_PI / (ior * ior) * co * t.transmittance(ci) * t.transmittance(co));
                 spec + diff
@@ -201,13 +198,7 @@ impl Material {
                 let ps = blinn_specular_probability(diffuse, specular);
                 ps * phong_half_pdf(exponent, wi, wo) + (1.0 - ps) * cosine_hemisphere_pdf(wo)
             }
-            Material::GgxConductor { alpha, .. } => {
-                let h = (wi + wo).normalize();
-                if wo.dot(h) <= 0.0 {
-                    return 0.0;
-                }
-                mf::visible_normal_pdf(wi, h, alpha) / (4.0 * wo.dot(h))
-            }
+            Material::GgxConductor { alpha, .. } => ggx_reflection_pdf(wi, wo, alpha),
             Material::GgxPlastic {
                 diffuse,
                 specular,
@@ -215,13 +206,7 @@ impl Material {
                 ior,
             } => {
                 let ps = plastic_specular_probability(diffuse, specular, alpha, ior, ci);
-                let h = (wi + wo).normalize();
-                let spec = if wo.dot(h) > 0.0 {
-                    mf::visible_normal_pdf(wi, h, alpha) / (4.0 * wo.dot(h))
-                } else {
-                    0.0
-                };
-                ps * spec + (1.0 - ps) * cosine_hemisphere_pdf(wo)
+                ps * ggx_reflection_pdf(wi, wo, alpha) + (1.0 - ps) * cosine_hemisphere_pdf(wo)
             }
         }
     }
@@ -420,6 +405,25 @@ fn plastic_specular_probability(
     } else {
         0.0
     }
+}
+
+/// The GGX reflection term shared by the conductor and the plastic's coating: the half vector
+/// `h` and `D(h) G1(wi, h) G1(wo, h) / (4 cos_i)` (Walter et al. 2007, eq. 20 without Fresnel,
+/// Smith's separable shadowing). Both directions must be above the horizon.
+fn ggx_reflection(wi: Vec3, wo: Vec3, alpha: f32) -> (Vec3, f32) {
+    let h = (wi + wo).normalize();
+    let g = mf::smith_g1(wi, h, alpha) * mf::smith_g1(wo, h, alpha);
+    (h, mf::ggx_d(h, alpha) * g / (4.0 * wi.z))
+}
+
+/// Solid-angle pdf of `wo` when the half vector is drawn from the visible normals of `wi`
+/// (Heitz 2018) and reflected: `D_wi(h) / (4 wo.h)`; zero when `wo` is behind `h`.
+fn ggx_reflection_pdf(wi: Vec3, wo: Vec3, alpha: f32) -> f32 {
+    let h = (wi + wo).normalize();
+    if wo.dot(h) <= 0.0 {
+        return 0.0;
+    }
+    mf::visible_normal_pdf(wi, h, alpha) / (4.0 * wo.dot(h))
 }
 
 #[cfg(test)]

@@ -132,11 +132,9 @@ pub fn refract(wi: Vec3, m: Vec3, eta: f32) -> Option<Vec3> {
 /// Quadrature resolution (per axis) of the visible-normal integrals below.
 const QUAD_N: usize = 64;
 
-/// Energy reflected by a GGX dielectric interface (relative index `eta`, single scattering,
-/// shadowing included) for light from the direction with cosine `cos_i`:
-/// `R(wi) = ∫ F(wi.m) G1(wo, m) D_wi(m) dm`, `wo = reflect(wi, m)`; midpoint quadrature over
-/// the visible-normal sampler's unit square.
-pub fn rough_dielectric_reflectance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
+/// `∫ f(wi, m) D_wi(m) dm` over the visible normals `m` of the direction with cosine `cos_i`
+/// (in the x-z plane): midpoint quadrature over the visible-normal sampler's unit square.
+fn visible_normal_integral(cos_i: f32, alpha: f32, f: impl Fn(Vec3, Vec3) -> f32) -> f32 {
     let cos_i = cos_i.clamp(1e-4, 1.0);
     let wi = Vec3::new((1.0 - cos_i * cos_i).sqrt(), 0.0, cos_i);
     let mut sum = 0.0f64;
@@ -146,35 +144,29 @@ pub fn rough_dielectric_reflectance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
                 (i as f32 + 0.5) / QUAD_N as f32,
                 (j as f32 + 0.5) / QUAD_N as f32,
             );
-            let m = sample_visible_normal(wi, alpha, u);
-            let wo = reflect(wi, m);
-            sum += (fresnel_dielectric(wi.dot(m), eta) * smith_g1(wo, m, alpha)) as f64;
+            sum += f(wi, sample_visible_normal(wi, alpha, u)) as f64;
         }
     }
     (sum / (QUAD_N * QUAD_N) as f64) as f32
+}
+
+/// Energy reflected by a GGX dielectric interface (relative index `eta`, single scattering,
+/// shadowing included) for light from the direction with cosine `cos_i`:
+/// `R(wi) = ∫ F(wi.m) G1(wo, m) D_wi(m) dm`, `wo = reflect(wi, m)`.
+pub fn rough_dielectric_reflectance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
+    visible_normal_integral(cos_i, alpha, |wi, m| {
+        fresnel_dielectric(wi.dot(m), eta) * smith_g1(reflect(wi, m), m, alpha)
+    })
 }
 
 /// Energy transmitted through a GGX dielectric interface (relative index `eta`, single
 /// scattering, masking of the refracted direction included):
 /// `T(wi) = ∫ (1 - F(wi.m)) G1(wt, m) D_wi(m) dm`, `wt = refract(wi, m)`.
 pub fn rough_dielectric_transmittance(cos_i: f32, eta: f32, alpha: f32) -> f32 {
-    let cos_i = cos_i.clamp(1e-4, 1.0);
-    let wi = Vec3::new((1.0 - cos_i * cos_i).sqrt(), 0.0, cos_i);
-    let mut sum = 0.0f64;
-    for i in 0..QUAD_N {
-        for j in 0..QUAD_N {
-            let u = Vec2::new(
-                (i as f32 + 0.5) / QUAD_N as f32,
-                (j as f32 + 0.5) / QUAD_N as f32,
-            );
-            let m = sample_visible_normal(wi, alpha, u);
-            if let Some(wt) = refract(wi, m, eta) {
-                let f = fresnel_dielectric(wi.dot(m), eta);
-                sum += ((1.0 - f) * smith_g1(wt, m, alpha)) as f64;
-            }
-        }
-    }
-    (sum / (QUAD_N * QUAD_N) as f64) as f32
+    visible_normal_integral(cos_i, alpha, |wi, m| match refract(wi, m, eta) {
+        Some(wt) => (1.0 - fresnel_dielectric(wi.dot(m), eta)) * smith_g1(wt, m, alpha),
+        None => 0.0,
+    })
 }
 
 /// Number of `cos theta` entries of the transmittance table (uniform over `[0, 1]`).
