@@ -18,6 +18,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod sg;
 pub mod sh;
 pub mod transport;
 

@@ -17,7 +17,8 @@ pub struct Args {
     /// Output bundle.
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Method (only `sh` so far).
+    /// Method: `sh` (diffuse SH PRT) or `sg` (Green 2005 view-dependent glossy PRT with
+    /// spherical Gaussians; options under "SG bake").
     #[arg(long, default_value = "sh")]
     pub method: String,
     /// SH order n (n^2 coefficients), 1..=32.
@@ -41,6 +42,8 @@ pub struct Args {
     /// Ray-casting back-end: embree or bvh (default: the fastest available).
     #[arg(long)]
     pub backend: Option<String>,
+    #[command(flatten)]
+    pub sg: crate::sg::SgBakeOpts,
 }
 
 /// Parse a transfer kind.
@@ -103,11 +106,11 @@ pub fn bake_scene(
 
 /// Run `relight bake`.
 pub fn run(a: Args) -> Result<()> {
+    if a.method == "sg" {
+        return crate::sg::run_bake(&a);
+    }
     if a.method != "sh" {
-        bail!(
-            "unknown --method '{}': this version bakes only 'sh'",
-            a.method
-        );
+        bail!("unknown --method '{}' (sh, sg)", a.method);
     }
     let desc = SceneDesc::read(&a.scene)?;
     let scene = desc.build(&a.scene)?;

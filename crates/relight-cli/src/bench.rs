@@ -6,6 +6,9 @@
 //! 2. SH bake time of bunny_watertight.obj (order 4, 1024 samples, shadowed + 1 bounce), and
 //!    its overhead over casting the same rays with nothing else done.
 //! 3. SH relight time per frame for 1M vertices at order 5, against a STREAM-like copy.
+//!
+//! Then the later methods: hybrid frames, the Gaussian-prefiltered environment, and the SG
+//! frame (512 x 512, ~15K vertices) against the SH frame of the same scene.
 
 use anyhow::{anyhow, Result};
 use rayon::prelude::*;
@@ -172,7 +175,36 @@ pub fn run(a: Args) -> Result<()> {
     bench_hybrid(a.quick);
     // 5. Gaussian-prefiltered environment (issue 4 building block).
     bench_prefilter();
+    // 6. SG frame (issue 4): per-vertex view blend + per-pixel lobe blend and fetches.
+    bench_sg(a.quick);
     Ok(())
+}
+
+/// A 512 x 512 SG frame of a ~15K-vertex sphere (1, 2 and 3 lobes; 1 only with --quick)
+/// against the SH PRT frame of the same mesh and camera, measured in the same run (median of
+/// 9 frames, 3 with --quick).
+fn bench_sg(quick: bool) {
+    let runs = if quick { 3 } else { 9 };
+    println!(
+        "\n## SG frame: 512 x 512, ~15K-vertex sphere, one sample per pixel (median of {runs})"
+    );
+    println!("| lobes | vertices | coverage | SG frame (ms) | of which per-vertex (ms) | SG CPU time, all threads (ms) | SH frame (ms) | SH CPU time (ms) | SG / SH | fps |\n|---|---|---|---|---|---|---|---|---|---|");
+    let cpu = |c: Option<f64>| c.map_or("n/a".into(), |c| format!("{c:.1}"));
+    for lobes in if quick { 1..=1 } else { 1..=3 } {
+        let b = relight_render::shade_sg::bench_sg_frame(lobes, runs);
+        println!(
+            "| {lobes} | {} | {:.0} % | {:.1} | {:.1} | {} | {:.1} | {} | {:.2} | {:.0} |",
+            b.vertices,
+            100.0 * b.coverage,
+            b.ms_per_frame,
+            b.vertex_ms,
+            cpu(b.cpu_ms_per_frame),
+            b.sh_ms_per_frame,
+            cpu(b.sh_cpu_ms_per_frame),
+            b.ms_per_frame / b.sh_ms_per_frame,
+            1e3 / b.ms_per_frame
+        );
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

@@ -38,6 +38,10 @@ pub struct Args {
     pub order: usize,
     #[command(flatten)]
     pub hybrid: crate::hybrid::HybridOpts,
+    #[command(flatten)]
+    pub hybrid_eval: crate::eval_hybrid::EvalHybridOpts,
+    #[command(flatten)]
+    pub sg: crate::sg::SgBakeOpts,
     /// Environments to light every scene with, in turn (default: each scene's own).
     #[arg(long)]
     pub env: Vec<PathBuf>,
@@ -111,7 +115,9 @@ pub fn run(a: Args) -> Result<()> {
         "sh" if a.scenes.is_empty() => bail!("--method sh needs at least one scene"),
         "sh" => {}
         "hybrid" => return run_hybrid(&a),
-        m => bail!("unknown --method '{m}' (sh, hybrid)"),
+        "sg-basis" => return crate::eval_sg_basis::run(&a.out),
+        "sg" => return crate::eval_sg::run(&a),
+        m => bail!("unknown --method '{m}' (sh, hybrid, sg, sg-basis)"),
     }
     if a.min_order < 1 || a.min_order > a.max_order || a.max_order > relight_sphere::sh::MAX_ORDER {
         bail!(
@@ -244,7 +250,18 @@ pub fn mask_and_reference(
     dir: &std::path::Path,
     spp: u32,
 ) -> Result<(Image, Vec<bool>, f64)> {
-    let json = mitsuba::export_mitsuba(scene, &dir.join("mitsuba"), spp, 2)
+    mask_and_reference_at_depth(python, scene, dir, spp, 2)
+}
+
+/// [`mask_and_reference`] with Mitsuba's `max_depth` (2 = direct only, -1 = unlimited).
+pub fn mask_and_reference_at_depth(
+    python: &std::path::Path,
+    scene: &relight_scene::scene::Scene,
+    dir: &std::path::Path,
+    spp: u32,
+    max_depth: i32,
+) -> Result<(Image, Vec<bool>, f64)> {
+    let json = mitsuba::export_mitsuba(scene, &dir.join("mitsuba"), spp, max_depth)
         .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
     eprintln!("eval: {}: Mitsuba 3, {spp} spp x 2 seeds", dir.display());
     let (imgs, report) =
@@ -325,7 +342,15 @@ fn run_hybrid(a: &Args) -> Result<()> {
         a.env.clone()
     };
     crate::eval_hybrid::run(
-        &scene, &envs, a.order, a.samples, a.spp, a.width, &a.hybrid, &a.out,
+        &scene,
+        &envs,
+        a.order,
+        a.samples,
+        a.spp,
+        a.width,
+        &a.hybrid,
+        &a.hybrid_eval,
+        &a.out,
     )?;
     Ok(())
 }

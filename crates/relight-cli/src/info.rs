@@ -42,6 +42,43 @@ pub fn run(a: Args) -> Result<()> {
             t.bytes.len()
         );
     }
+    if b.metadata.get("method").map(String::as_str) == Some("sg") {
+        describe_sg(&a.bundle, &b)?;
+    }
+    Ok(())
+}
+
+/// The SG part of `relight info`: views, lobes, storage per vertex, fit statistics.
+fn describe_sg(path: &std::path::Path, b: &Bundle) -> Result<()> {
+    let sg = crate::store::SgBundle::from_bundle(path, b)?;
+    let (s, k) = (&sg.settings, &sg.bake);
+    let v = sg.mesh.vertex_count().max(1);
+    let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
+    println!("  SG (Green 2005 view-dependent glossy PRT):");
+    println!(
+        "    {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
+        k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
+    );
+    println!(
+        "    bytes per vertex: {} transfer (lobes + diffuse SH, {}), {} all tensors",
+        sg.transfer_bytes_per_vertex(),
+        if s.f16 { "f16" } else { "f32" },
+        tensor_bytes / v
+    );
+    let distinct: std::collections::BTreeSet<String> =
+        k.materials.iter().map(|m| format!("{m:?}")).collect();
+    println!(
+        "    {} distinct per-vertex materials{}",
+        distinct.len(),
+        s.blend
+            .as_ref()
+            .map_or(String::new(), |b| format!(" (blend to {b})"))
+    );
+    let st = &k.stats;
+    println!(
+        "    fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} iterations; flips {} -> {} after relaxation",
+        st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
+    );
     Ok(())
 }
 

@@ -11,10 +11,13 @@ mod decompose;
 mod demo;
 mod eval;
 mod eval_hybrid;
+mod eval_sg;
+mod eval_sg_basis;
 mod hybrid;
 mod info;
 mod reference;
 mod render;
+mod sg;
 mod store;
 
 use clap::{Parser, Subcommand};

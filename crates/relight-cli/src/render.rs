@@ -19,12 +19,15 @@ use std::time::Instant;
 pub struct Args {
     /// The baked bundle.
     pub bundle: PathBuf,
-    /// Method: `sh` (SH PRT of the whole environment) or `hybrid` (SH part + cap lights with
-    /// shadow maps; options prefixed "Hybrid:").
+    /// Method: `sh` (SH PRT of the whole environment), `hybrid` (SH part + cap lights with
+    /// shadow maps; options prefixed "Hybrid:") or `sg` (view-dependent glossy PRT, needs a
+    /// bundle baked with --method sg; options under "SG render").
     #[arg(long, default_value = "sh")]
     pub method: String,
     #[command(flatten)]
     pub hybrid: crate::hybrid::HybridOpts,
+    #[command(flatten)]
+    pub sg: crate::sg::SgRenderOpts,
     /// Environment map (default: the one of the baked scene).
     #[arg(long)]
     pub env: Option<PathBuf>,
@@ -32,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     pub layout: Option<String>,
     /// Rotate the environment about +Y by this many degrees (Mitsuba `to_world` rotate).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, alias = "rotate-y", allow_hyphen_values = true)]
     pub rotate_env: Option<f32>,
     /// Multiply the environment's radiance.
     #[arg(long)]
@@ -168,42 +171,24 @@ pub struct RelightTimes {
 pub fn run(a: Args) -> Result<()> {
     let tm = parse_tonemap(&a.tonemap)?;
     let window = parse_window(&a.window)?;
+    if a.method == "sg" {
+        let b = crate::store::SgBundle::read(&a.bundle)?;
+        let (env, camera) = frame_setup(&a, &b.scene)?;
+        let (img, t) =
+            crate::sg::relight_sg(&b, &env, &camera, &a.sg, a.supersample, a.background)?;
+        println!(
+            "SG: {} vertices, {} lobes per vertex and view, diffuse SH order {}: prefilter {:.1} ms (once per environment), per-vertex {:.2} ms, raster + per-pixel {:.1} ms",
+            b.mesh.vertex_count(),
+            b.bake.direct.lobe_count + b.bake.indirect.as_ref().map_or(0, |l| l.lobe_count),
+            b.bake.diffuse.order,
+            t.prefilter_ms,
+            t.frame.vertex_ms,
+            t.frame.pixel_ms
+        );
+        return write_all(&a.out, &img, &tm);
+    }
     let bake = ShBake::read(&a.bundle)?;
-    let mut env = match &a.env {
-        Some(p) => {
-            let layout = match &a.layout {
-                Some(l) => {
-                    Some(parse_layout(l).with_context(|| format!("unknown --layout '{l}'"))?)
-                }
-                None => None,
-            };
-            Environment::new(relight_scene::io::load_env(p, layout)?)
-        }
-        None => scene_file::build_env(&bake.scene.environment).with_context(|| {
-            format!(
-                "{}: loading the baked scene's environment (pass --env to use another)",
-                a.bundle.display()
-            )
-        })?,
-    };
-    if let Some(r) = a.rotate_env {
-        env.rotate_y_deg = r;
-    }
-    if let Some(s) = a.env_scale {
-        env.scale = s;
-    }
-    let mut camera = bake.scene.camera;
-    if let Some(c) = &a.camera {
-        camera = parse_camera(c, &camera)?;
-    }
-    camera.width = a.width.unwrap_or(camera.width);
-    camera.height = a.height.unwrap_or(camera.height);
-    camera
-        .validate()
-        .map_err(|e| anyhow::anyhow!("camera: {e}"))?;
-    if a.supersample == 0 || a.supersample > 16 {
-        bail!("--supersample {} is not in 1..=16", a.supersample);
-    }
+    let (env, camera) = frame_setup(&a, &bake.scene)?;
     let img = match a.method.as_str() {
         "sh" => {
             let (img, t) = relight(&bake, &env, &camera, window, a.supersample, a.background);
@@ -232,10 +217,55 @@ pub fn run(a: Args) -> Result<()> {
             );
             img
         }
-        m => bail!("unknown --method '{m}' (sh, hybrid)"),
+        m => bail!("unknown --method '{m}' (sh, hybrid, sg)"),
     };
-    for o in &a.out {
-        write_image(o, &img, &tm)?;
+    write_all(&a.out, &img, &tm)
+}
+
+/// The environment and camera of a frame: the baked scene's, overridden by the flags.
+fn frame_setup(a: &Args, scene: &scene_file::SceneDesc) -> Result<(Environment, Camera)> {
+    let mut env = match &a.env {
+        Some(p) => {
+            let layout = match &a.layout {
+                Some(l) => {
+                    Some(parse_layout(l).with_context(|| format!("unknown --layout '{l}'"))?)
+                }
+                None => None,
+            };
+            Environment::new(relight_scene::io::load_env(p, layout)?)
+        }
+        None => scene_file::build_env(&scene.environment).with_context(|| {
+            format!(
+                "{}: loading the baked scene's environment (pass --env to use another)",
+                a.bundle.display()
+            )
+        })?,
+    };
+    if let Some(r) = a.rotate_env {
+        env.rotate_y_deg = r;
+    }
+    if let Some(s) = a.env_scale {
+        env.scale = s;
+    }
+    let mut camera = scene.camera;
+    if let Some(c) = &a.camera {
+        camera = parse_camera(c, &camera)?;
+    }
+    camera.width = a.width.unwrap_or(camera.width);
+    camera.height = a.height.unwrap_or(camera.height);
+    camera
+        .validate()
+        .map_err(|e| anyhow::anyhow!("camera: {e}"))?;
+    if a.supersample == 0 || a.supersample > 16 {
+        bail!("--supersample {} is not in 1..=16", a.supersample);
+    }
+    Ok((env, camera))
+}
+
+/// Write `img` to every output.
+fn write_all(out: &[PathBuf], img: &Image, tm: &relight_render::tonemap::ToneMap) -> Result<()> {
+    for o in out {
+        write_image(o, img, tm)?;
         println!("wrote {}", o.display());
     }
     Ok(())

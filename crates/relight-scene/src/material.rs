@@ -371,6 +371,148 @@ impl Material {
     }
 }
 
+/// The glossy / diffuse split of every BRDF used by view-dependent PRT (Green 2005, thesis
+/// section 3.1, Fig. 3-1: the view-independent diffuse part goes to SH, the glossy part to
+/// per-view spherical Gaussians). For every material and directions above the horizon,
+/// `eval(wi, wo) = diffuse_albedo() / pi * cos_o * view * light + glossy_eval(wi, wo)` with
+/// `(view, light) = diffuse_factors(cos_i, cos_o)`.
+impl Material {
+    /// The glossy (view-dependent) part of [`Material::eval`], cosine included: Blinn-Phong's
+    /// specular term, the whole GGX conductor, the GGX plastic's coating (specular) term; zero
+    /// for Lambert. Zero when either direction is below the horizon.
+    pub fn glossy_eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+        let (ci, co) = (wi.z, wo.z);
+        if ci <= 0.0 || co <= 0.0 {
+            return Vec3::ZERO;
+        }
+        match *self {
+            Material::Lambert { .. } => Vec3::ZERO,
+            Material::BlinnPhong {
+                specular, exponent, ..
+            } => {
+                let h = (wi + wo).normalize();
+                let lobe = (exponent + 8.0) * (FRAC_1_PI / 8.0) * h.z.max(0.0).powf(exponent);
+                specular * (lobe * co)
+            }
+            Material::GgxConductor { specular, alpha } => {
+                let (_, dg) = ggx_reflection(wi, wo, alpha);
+                specular * dg
+            }
+            Material::GgxPlastic {
+                specular,
+                alpha,
+                ior,
+                ..
+            } => {
+                let (h, dg) = ggx_reflection(wi, wo, alpha);
+                specular * (mf::fresnel_dielectric(wi.dot(h), ior) * dg)
+            }
+        }
+    }
+
+    /// The view-side and light-side factors `(view, light)` of the diffuse part of
+    /// [`Material::eval`]: `eval - glossy_eval = diffuse_albedo() / pi * cos_o * view * light`
+    /// for `cos_i, cos_o > 0`. `(1, 1)` for Lambert, Blinn-Phong and the GGX conductor (whose
+    /// diffuse albedo is zero). For the GGX plastic, `(t(cos_i), t(cos_o) / tbar^2)` with `t`
+    /// the interface transmittance and `tbar` its cosine-weighted mean
+    /// ([`microfacet::PlasticTables`]): since `diffuse_albedo() = diffuse / ((1 - Fdr) eta^2)
+    /// tbar^2`, the light side is `t(cos_o) / ((1 - Fdr) eta^2)` relative to the raw `diffuse`.
+    ///
+    /// In view-dependent PRT (Green 2005 sec. 3.1) the light side goes into the baked diffuse
+    /// SH transfer and the view side is applied with the albedo at render time.
+    pub fn diffuse_factors(&self, cos_i: f32, cos_o: f32) -> (f32, f32) {
+        match *self {
+            Material::Lambert { .. }
+            | Material::BlinnPhong { .. }
+            | Material::GgxConductor { .. } => (1.0, 1.0),
+            Material::GgxPlastic { alpha, ior, .. } => {
+                let t = PlasticTables::get(alpha, ior);
+                let tbar = t.mean_transmittance;
+                (
+                    t.transmittance(cos_i),
+                    t.transmittance(cos_o) / (tbar * tbar),
+                )
+            }
+        }
+    }
+
+    /// Solid-angle density with which [`Material::sample_glossy`] produces `wo` given `wi`:
+    /// the Blinn-Phong half-vector lobe, or the GGX visible-normal reflection (Heitz 2018);
+    /// zero for Lambert, for a Blinn-Phong without specular, or below the horizon.
+    pub fn glossy_pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        match *self {
+            Material::Lambert { .. } => 0.0,
+            Material::BlinnPhong {
+                specular, exponent, ..
+            } => {
+                if specular == Vec3::ZERO {
+                    0.0
+                } else {
+                    phong_half_pdf(exponent, wi, wo)
+                }
+            }
+            Material::GgxConductor { alpha, .. } | Material::GgxPlastic { alpha, .. } => {
+                ggx_reflection_pdf(wi, wo, alpha)
+            }
+        }
+    }
+
+    /// Importance-sample the glossy part only ([`Material::glossy_eval`]): `weight =
+    /// glossy_eval / glossy_pdf`, `pdf = glossy_pdf`. `None` for materials without a glossy
+    /// part, when `wi` is below the horizon or the sample falls below it. Used to trace the
+    /// indirect glossy paths of Green 2005 (thesis sec. 2.2.1).
+    pub fn sample_glossy(&self, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let (wo, weight) = match *self {
+            Material::Lambert { .. } => return None,
+            Material::BlinnPhong {
+                specular, exponent, ..
+            } => {
+                if specular == Vec3::ZERO {
+                    return None;
+                }
+                let wo = mf::reflect(wi, sample_phong_half(exponent, u));
+                let pdf = self.glossy_pdf(wi, wo);
+                if wo.z <= 0.0 || pdf.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                    return None;
+                }
+                return Some(BsdfSample {
+                    wo,
+                    weight: self.glossy_eval(wi, wo) / pdf,
+                    pdf,
+                });
+            }
+            Material::GgxConductor { specular, alpha } => {
+                let m = mf::sample_visible_normal(wi, alpha, u);
+                let wo = mf::reflect(wi, m);
+                // eval / pdf = F G1(wo, m) for visible-normal sampling (Heitz 2018, eq. 19).
+                (wo, specular * mf::smith_g1(wo, m, alpha))
+            }
+            Material::GgxPlastic {
+                specular,
+                alpha,
+                ior,
+                ..
+            } => {
+                let m = mf::sample_visible_normal(wi, alpha, u);
+                let wo = mf::reflect(wi, m);
+                let f = mf::fresnel_dielectric(wi.dot(m), ior);
+                (wo, specular * (f * mf::smith_g1(wo, m, alpha)))
+            }
+        };
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let pdf = self.glossy_pdf(wi, wo);
+        (pdf > 0.0).then_some(BsdfSample { wo, weight, pdf })
+    }
+}
+
 /// Probability of sampling the Blinn-Phong specular lobe: mean specular over mean total.
 #[inline]
 fn blinn_specular_probability(diffuse: Vec3, specular: Vec3) -> f32 {
@@ -519,6 +661,21 @@ mod tests {
     /// quadrature of the pdf in each bin, an extra bin for "no sample" (mass the pdf does not
     /// cover); bins expecting fewer than 5 samples are pooled. Returns the p-value.
     fn chi2_pvalue(m: &Material, wi: Vec3, n: usize, seed: u64) -> f64 {
+        chi2_pvalue_of(
+            |u, ul| m.sample(wi, u, ul).map(|s| s.wo),
+            |wo| m.pdf(wi, wo),
+            n,
+            seed,
+        )
+    }
+
+    /// [`chi2_pvalue`] for any sampler `sample(u, u_lobe) -> wo` and its density `pdf(wo)`.
+    fn chi2_pvalue_of(
+        sample: impl Fn(Vec2, f32) -> Option<Vec3>,
+        pdf: impl Fn(Vec3) -> f32,
+        n: usize,
+        seed: u64,
+    ) -> f64 {
         const NC: usize = 32;
         const NP: usize = 64;
         const K: usize = 16;
@@ -527,11 +684,11 @@ mod tests {
         for _ in 0..n {
             let u = rng.vec2();
             let ul = rng.next_f32();
-            match m.sample(wi, u, ul) {
-                Some(s) => {
-                    assert!(s.wo.z > 0.0, "sample below the horizon");
-                    let c = ((s.wo.z * NC as f32) as usize).min(NC - 1);
-                    let phi = s.wo.y.atan2(s.wo.x).rem_euclid(2.0 * PI);
+            match sample(u, ul) {
+                Some(wo) => {
+                    assert!(wo.z > 0.0, "sample below the horizon");
+                    let c = ((wo.z * NC as f32) as usize).min(NC - 1);
+                    let phi = wo.y.atan2(wo.x).rem_euclid(2.0 * PI);
                     let p = ((phi / (2.0 * PI) * NP as f32) as usize).min(NP - 1);
                     obs[c * NP + p] += 1.0;
                 }
@@ -555,7 +712,7 @@ mod tests {
                         let ph = (p as f64 + (j as f64 + 0.5) / K as f64) * dp;
                         let wo =
                             Vec3::new((sz * ph.cos()) as f32, (sz * ph.sin()) as f32, cz as f32);
-                        s += m.pdf(wi, wo) as f64 * sz * dth;
+                        s += pdf(wo) as f64 * sz * dth;
                     }
                 }
                 exp[c * NP + p] = s / K as f64 * dp * n as f64;
@@ -1077,6 +1234,147 @@ mod tests {
             assert_eq!(m.eval(dir(10.0, 0.0), dir(100.0, 0.0)), Vec3::ZERO);
             assert_eq!(m.pdf(dir(10.0, 0.0), dir(100.0, 0.0)), 0.0);
             assert!(m.sample(dir(100.0, 0.0), Vec2::splat(0.3), 0.5).is_none());
+        }
+    }
+
+    #[test]
+    fn eval_is_diffuse_part_plus_glossy_part() {
+        let mut rng = TestRng(17);
+        for (name, m) in test_materials() {
+            if matches!(m, Material::Lambert { .. }) {
+                assert_eq!(m.glossy_eval(Vec3::Z, Vec3::Z), Vec3::ZERO);
+            }
+            for _ in 0..2000 {
+                let wi = sample_cosine_hemisphere(rng.vec2());
+                let wo = sample_cosine_hemisphere(rng.vec2());
+                let (view, light) = m.diffuse_factors(wi.z, wo.z);
+                let diffuse = m.diffuse_albedo() * (FRAC_1_PI * wo.z * view * light);
+                let sum = diffuse + m.glossy_eval(wi, wo);
+                let e = m.eval(wi, wo);
+                // 1e-5 relative: the same terms in another order (f32 rounding).
+                assert!(
+                    (sum - e).abs().max_element() <= 1e-5 * e.max_element().max(1e-3),
+                    "{name} wi={wi} wo={wo}: {sum} vs {e}"
+                );
+                let g = m.glossy_eval(wi, wo);
+                assert!(
+                    g.min_element() >= 0.0 && (e - g).min_element() >= -1e-6,
+                    "{name}"
+                );
+            }
+            // Below the horizon the glossy part is black too.
+            assert_eq!(m.glossy_eval(dir(100.0, 0.0), dir(10.0, 0.0)), Vec3::ZERO);
+            assert_eq!(m.glossy_eval(dir(10.0, 0.0), dir(100.0, 0.0)), Vec3::ZERO);
+        }
+        // The diffuse factors of the plastic average to the albedo: 2 ∫ view(mu) mu dmu = tbar
+        // and 2 ∫ light(mu) mu dmu = 1 / tbar (midpoint rule, 1e-3: table interpolation).
+        let m = Material::GgxPlastic {
+            diffuse: Vec3::ONE,
+            specular: Vec3::ONE,
+            alpha: 0.3,
+            ior: 1.49,
+        };
+        let tbar = PlasticTables::get(0.3, 1.49).mean_transmittance;
+        let (mut sv, mut sl) = (0.0f64, 0.0f64);
+        for k in 0..1000 {
+            let mu = (k as f32 + 0.5) / 1000.0;
+            let (v, l) = m.diffuse_factors(mu, mu);
+            sv += (2.0 * v * mu) as f64 / 1000.0;
+            sl += (2.0 * l * mu) as f64 / 1000.0;
+        }
+        assert!((sv as f32 - tbar).abs() < 1e-3 && (sl as f32 * tbar - 1.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn chi2_glossy_sample_matches_glossy_pdf() {
+        let mats: Vec<_> = test_materials()
+            .into_iter()
+            .filter(|(_, m)| !matches!(m, Material::Lambert { .. }))
+            .collect();
+        let tests = mats.len() * WI_THETAS.len();
+        // Sidak correction: family-wise significance 0.01 over all tests.
+        let alpha = 1.0 - (1.0 - 0.01f64).powf(1.0 / tests as f64);
+        let mut failures = vec![];
+        for (k, (name, m)) in mats.iter().enumerate() {
+            for (j, &t) in WI_THETAS.iter().enumerate() {
+                let wi = dir(t, 30.0);
+                let p = chi2_pvalue_of(
+                    |u, _| m.sample_glossy(wi, u).map(|s| s.wo),
+                    |wo| m.glossy_pdf(wi, wo),
+                    200_000,
+                    (k * 10 + j) as u64 + 101,
+                );
+                if p < alpha {
+                    failures.push(format!("{name} theta_i={t}: p = {p:.3e} < {alpha:.3e}"));
+                }
+            }
+        }
+        assert!(failures.is_empty(), "{failures:#?}");
+        // A Lambert has no glossy part to sample.
+        assert!(Material::default()
+            .sample_glossy(Vec3::Z, Vec2::splat(0.5))
+            .is_none());
+    }
+
+    #[test]
+    fn glossy_sample_weight_is_glossy_eval_over_pdf() {
+        let mut rng = TestRng(23);
+        for (name, m) in test_materials() {
+            for &t in &WI_THETAS {
+                let wi = dir(t, 110.0);
+                for _ in 0..2000 {
+                    if let Some(s) = m.sample_glossy(wi, rng.vec2()) {
+                        let pdf = m.glossy_pdf(wi, s.wo);
+                        let w = m.glossy_eval(wi, s.wo) / pdf;
+                        assert!((s.pdf - pdf).abs() <= 1e-3 * pdf, "{name}: pdf");
+                        assert!(
+                            (s.weight - w).abs().max_element() <= 1e-3 * w.max_element().max(1e-3),
+                            "{name}: weight {} vs {w}",
+                            s.weight
+                        );
+                    }
+                }
+            }
+        }
+        // In aggregate: the Monte Carlo glossy albedo E[weight] equals the quadrature of
+        // glossy_eval over the hemisphere (moderate lobes, which the 600x600 rule resolves).
+        let mats = [
+            Material::BlinnPhong {
+                diffuse: Vec3::splat(0.4),
+                specular: Vec3::splat(0.5),
+                exponent: 20.0,
+            },
+            Material::GgxConductor {
+                specular: Vec3::new(0.9, 0.8, 0.7),
+                alpha: 0.4,
+            },
+            Material::GgxPlastic {
+                diffuse: Vec3::splat(0.5),
+                specular: Vec3::ONE,
+                alpha: 0.4,
+                ior: 1.49,
+            },
+        ];
+        for m in mats {
+            for &t in &[10.0f32, 60.0] {
+                let wi = dir(t, 0.0);
+                let quad = hemisphere_integral(|wo| m.glossy_eval(wi, wo).x as f64);
+                let mut rng = TestRng(5);
+                let n = 200_000;
+                let (mut s, mut s2) = (0.0f64, 0.0f64);
+                for _ in 0..n {
+                    let w = m.sample_glossy(wi, rng.vec2()).map_or(0.0, |s| s.weight.x) as f64;
+                    s += w;
+                    s2 += w * w;
+                }
+                let mean = s / n as f64;
+                let se = ((s2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
+                // 4 standard errors plus 2e-3 for the quadrature of the peaked lobe.
+                assert!(
+                    (mean - quad).abs() < 4.0 * se + 2e-3,
+                    "{m:?} theta_i={t}: MC {mean} +- {se} vs quadrature {quad}"
+                );
+            }
         }
     }
 }

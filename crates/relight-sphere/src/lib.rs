@@ -62,6 +62,7 @@ pub mod decompose;
 pub mod env_prefilter;
 pub mod env_sampler;
 pub mod envmap;
+pub mod haar;
 pub mod icosphere;
 pub mod latlong;
 pub mod probe;

@@ -11,11 +11,20 @@
 //! E = sum_i dA_i sum_rgb (sum_k a_k exp(lambda_k (mu_k . w_i - 1)) - T_i)^2         (data, eq. 3.1)
 //!   + w_mean  sum_k |mu_k - mu'_k|^2                                                 (eq. 2.4)
 //!   + w_width sum_k (ln lambda_k - ln lambda'_k)^2                                   (eq. 2.5)
+//!   + delta sum_s sum_{k1<k2} max(-<mu_k1 - mu_k2, mu^s_k1 - mu^s_k2>, 0)^3           (eq. 2.6)
 //! ```
 //! where `mu'_k, lambda'_k` are the lobes of an optional prior (e.g. the already fitted
 //! neighbour of a flood fill, or the average of neighbouring views). Green aligns the width
 //! `sigma`; since `ln lambda = -2 ln sigma` the log-sharpness alignment is the same term on a
 //! relative scale, which is what makes it meaningful for both sharp and broad lobes.
+//!
+//! The last line is Green's spatial *arrangement* term (optional, [`Arrangement`]): for every
+//! already fitted neighbouring vertex `s` (its lobes `mu^s` for the same view) and pair of
+//! lobes, it penalises a difference vector `mu_k1 - mu_k2` pointing against the neighbour's,
+//! i.e. a swapped ("flipped") pair. It enters the least squares as the residual
+//! `sqrt(delta) m^(3/2)`, `m = max(-<mu_k1 - mu_k2, d_s>, 0)`, which is C1 (its derivative
+//! `1.5 sqrt(delta) m^(1/2) dm/dp` vanishes where the term switches on), with
+//! `dm/dalpha_k1 = -<s_k1, d_s>`, `dm/dalpha_k2 = <s_k2, d_s>` (same with `t` for `beta`).
 //!
 //! # Parameters and bounds (6 per lobe)
 //! RGB amplitude `a >= 0`; axis `mu` moved in its tangent plane,
@@ -123,6 +132,46 @@ pub struct PriorWeights {
     pub mean: f64,
     /// `w_width` of the width alignment `(ln lambda_k - ln lambda'_k)^2` (Green eq. 2.5).
     pub width: f64,
+}
+
+/// Green's spatial arrangement term (eq. 2.6, module docs) against already fitted
+/// neighbouring vertices.
+#[derive(Clone, Copy, Debug)]
+pub struct Arrangement<'a> {
+    /// Weight `delta`.
+    pub weight: f64,
+    /// The neighbours' lobes for the same view, `n` consecutive lobes per neighbour in the
+    /// order of the lobes being fitted.
+    pub neighbours: &'a [SgLobe],
+}
+
+/// [`Arrangement`] in f64: `sqrt(delta)` and the neighbours' difference vectors
+/// `(k1, k2, mu^s_k1 - mu^s_k2)`.
+struct Arr64 {
+    sw: f64,
+    pairs: Vec<(usize, usize, [f64; 3])>,
+}
+
+impl Arr64 {
+    fn new(a: &Arrangement, n: usize) -> Option<Arr64> {
+        debug_assert!(n > 0 && a.neighbours.len().is_multiple_of(n) && a.weight >= 0.0);
+        if a.weight <= 0.0 || n < 2 {
+            return None;
+        }
+        let mut pairs = vec![];
+        for s in a.neighbours.chunks_exact(n) {
+            for k1 in 0..n {
+                for k2 in k1 + 1..n {
+                    let d = s[k1].axis - s[k2].axis;
+                    pairs.push((k1, k2, [d.x as f64, d.y as f64, d.z as f64]));
+                }
+            }
+        }
+        Some(Arr64 {
+            sw: a.weight.sqrt(),
+            pairs,
+        })
+    }
 }
 
 /// Options of [`fit`] and [`refine`].
@@ -238,6 +287,8 @@ fn for_each_row(
     lobes: &[Lobe64],
     opts: &FitOptions,
     prior: Option<&[Lobe64]>,
+    arr: Option<&Arr64>,
+    data: bool,
     mut row: impl FnMut(f64, &[usize], &[f64]),
 ) {
     let n = lobes.len();
@@ -251,7 +302,8 @@ fn for_each_row(
     for (k, l) in lobes.iter().enumerate() {
         lam[k] = l.log_l.exp();
     }
-    for i in 0..target.len() {
+    let texels = if data { target.len() } else { 0 };
+    for i in 0..texels {
         let (w, t) = (target.dirs[i], target.values[i]);
         let mut live = t != [0.0; 3];
         for (k, l) in lobes.iter().enumerate() {
@@ -304,13 +356,187 @@ fn for_each_row(
             }
         }
     }
+    if let Some(a) = arr {
+        for &(k1, k2, d) in &a.pairs {
+            let (l1, l2) = (&lobes[k1], &lobes[k2]);
+            let diff = [
+                l1.mu[0] - l2.mu[0],
+                l1.mu[1] - l2.mu[1],
+                l1.mu[2] - l2.mu[2],
+            ];
+            let m = -dot(diff, d);
+            if m <= 0.0 {
+                continue;
+            }
+            let f = 1.5 * a.sw * m.sqrt();
+            row(
+                a.sw * m * m.sqrt(),
+                &[6 * k1 + 3, 6 * k1 + 4, 6 * k2 + 3, 6 * k2 + 4],
+                &[
+                    -f * dot(l1.s, d),
+                    -f * dot(l1.t, d),
+                    f * dot(l2.s, d),
+                    f * dot(l2.t, d),
+                ],
+            );
+        }
+    }
 }
 
 /// Objective `E` and its data part.
-fn objective(t: &FitTarget, l: &[Lobe64], o: &FitOptions, p: Option<&[Lobe64]>) -> f64 {
-    let mut e = 0.0;
-    for_each_row(t, l, o, p, |r, _, _| e += r * r);
+fn objective(
+    t: &FitTarget,
+    l: &[Lobe64],
+    o: &FitOptions,
+    p: Option<&[Lobe64]>,
+    a: Option<&Arr64>,
+) -> f64 {
+    let mut e = data_cost(t, l, o);
+    for_each_row(t, l, o, p, a, false, |r, _, _| e += r * r);
     e
+}
+
+/// `ln zero_epsilon` (texels with zero data where every `lambda (mu . w - 1)` is below it
+/// are skipped), or `-inf` when skipping is off.
+fn ln_epsilon(o: &FitOptions) -> f64 {
+    if o.zero_epsilon > 0.0 {
+        o.zero_epsilon.ln()
+    } else {
+        f64::NEG_INFINITY
+    }
+}
+
+/// The data term alone (the rows of [`for_each_row`] without their Jacobian): the hot loop
+/// of every trial step.
+fn data_cost(t: &FitTarget, lobes: &[Lobe64], o: &FitOptions) -> f64 {
+    let n = lobes.len();
+    debug_assert!(n <= 10);
+    let ln_eps = ln_epsilon(o);
+    let mut lam = [0.0; 10];
+    for (k, l) in lobes.iter().enumerate() {
+        lam[k] = l.log_l.exp();
+    }
+    let mut e = [0.0; 10];
+    let mut sum = 0.0;
+    for i in 0..t.len() {
+        let (w, v) = (t.dirs[i], t.values[i]);
+        let mut live = v != [0.0; 3];
+        for (k, l) in lobes.iter().enumerate() {
+            e[k] = lam[k] * (dot(l.mu, w) - 1.0);
+            live |= e[k] > ln_eps;
+        }
+        if !live {
+            continue;
+        }
+        let mut f = [-v[0], -v[1], -v[2]];
+        for (k, l) in lobes.iter().enumerate() {
+            let g = e[k].exp();
+            for c in 0..3 {
+                f[c] += l.a[c] * g;
+            }
+        }
+        let sw = t.sqrt_w[i];
+        sum += (0..3).map(|c| (sw * f[c]) * (sw * f[c])).sum::<f64>();
+    }
+    sum
+}
+
+/// Normal equations `J^T J` (row-major `6n x 6n`) and `J^T r` of the whole objective. The
+/// data rows are accumulated through their structure: with the geometric factors
+/// `U = (sqrt(dA) g_k, sqrt(dA) g_k lambda_k (s_k . w), .. (t_k . w), sqrt(dA) g_k e_k)` per
+/// lobe, a channel-`c` row is `U_k0` on `a_kc` and `a_kc U_km` on the shared parameters, so
+/// `J^T J` needs only `sum U U^T` and `J^T r` only `sum r_c U` (a third of the work of
+/// accumulating the rows one by one, which [`for_each_row`] still does for the prior rows
+/// and for the tests).
+fn normal_equations(
+    t: &FitTarget,
+    lobes: &[Lobe64],
+    o: &FitOptions,
+    prior: Option<&[Lobe64]>,
+    arr: Option<&Arr64>,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = lobes.len();
+    let (m, q) = (6 * n, 4 * n);
+    let ln_eps = ln_epsilon(o);
+    let lam: Vec<f64> = lobes.iter().map(|l| l.log_l.exp()).collect();
+    let (mut e, mut u) = (vec![0.0; n], vec![0.0; q]);
+    let (mut uu, mut ru) = (vec![0.0; q * q], vec![0.0; 3 * q]);
+    for i in 0..t.len() {
+        let (w, v) = (t.dirs[i], t.values[i]);
+        let mut live = v != [0.0; 3];
+        for (k, l) in lobes.iter().enumerate() {
+            e[k] = lam[k] * (dot(l.mu, w) - 1.0);
+            live |= e[k] > ln_eps;
+        }
+        if !live {
+            continue;
+        }
+        let sw = t.sqrt_w[i];
+        let mut f = [-v[0], -v[1], -v[2]];
+        for (k, l) in lobes.iter().enumerate() {
+            let g = e[k].exp();
+            for c in 0..3 {
+                f[c] += l.a[c] * g;
+            }
+            let sg = sw * g;
+            u[4 * k] = sg;
+            u[4 * k + 1] = sg * lam[k] * dot(l.s, w);
+            u[4 * k + 2] = sg * lam[k] * dot(l.t, w);
+            u[4 * k + 3] = sg * e[k];
+        }
+        for a in 0..q {
+            let ua = u[a];
+            for b in a..q {
+                uu[a * q + b] += ua * u[b];
+            }
+        }
+        for c in 0..3 {
+            let r = sw * f[c];
+            for a in 0..q {
+                ru[c * q + a] += r * u[a];
+            }
+        }
+    }
+    for a in 0..q {
+        for b in 0..a {
+            uu[a * q + b] = uu[b * q + a];
+        }
+    }
+    let (mut jtj, mut jtr) = (vec![0.0; m * m], vec![0.0; m]);
+    for (k, lk) in lobes.iter().enumerate() {
+        for c in 0..3 {
+            jtr[6 * k + c] = ru[c * q + 4 * k];
+            for mm in 0..3 {
+                jtr[6 * k + 3 + mm] += lk.a[c] * ru[c * q + 4 * k + 1 + mm];
+            }
+        }
+        for (j, lj) in lobes.iter().enumerate() {
+            let akj: f64 = (0..3).map(|c| lk.a[c] * lj.a[c]).sum();
+            for c in 0..3 {
+                jtj[(6 * k + c) * m + 6 * j + c] = uu[4 * k * q + 4 * j];
+                for l in 0..3 {
+                    let x = lj.a[c] * uu[4 * k * q + 4 * j + 1 + l];
+                    jtj[(6 * k + c) * m + 6 * j + 3 + l] = x;
+                    jtj[(6 * j + 3 + l) * m + 6 * k + c] = x;
+                }
+            }
+            for a in 0..3 {
+                for b in 0..3 {
+                    jtj[(6 * k + 3 + a) * m + 6 * j + 3 + b] =
+                        akj * uu[(4 * k + 1 + a) * q + 4 * j + 1 + b];
+                }
+            }
+        }
+    }
+    for_each_row(t, lobes, o, prior, arr, false, |r, idx, val| {
+        for (a, &i) in idx.iter().enumerate() {
+            jtr[i] += val[a] * r;
+            for (b, &j) in idx.iter().enumerate() {
+                jtj[i * m + j] += val[a] * val[b];
+            }
+        }
+    });
+    (jtj, jtr)
 }
 
 /// Solves `a x = b` for symmetric positive definite `a` (row-major `m x m`) by Cholesky;
@@ -378,24 +604,17 @@ fn levenberg_marquardt(
     mut lobes: Vec<Lobe64>,
     o: &FitOptions,
     prior: Option<&[Lobe64]>,
+    arr: Option<&Arr64>,
 ) -> (Vec<Lobe64>, f64, usize) {
     let m = 6 * lobes.len();
     let (lo, hi) = ((o.lambda_min as f64).ln(), (o.lambda_max as f64).ln());
-    let mut cost = objective(target, &lobes, o, prior);
+    let mut cost = objective(target, &lobes, o, prior, arr);
     let mut damping = 1e-3;
     let mut it = 0;
     while it < o.max_iterations && cost > 1e-300 {
         it += 1;
         // Normal equations J^T J, J^T r from the analytic rows.
-        let (mut jtj, mut jtr) = (vec![0.0; m * m], vec![0.0; m]);
-        for_each_row(target, &lobes, o, prior, |r, idx, val| {
-            for (a, &i) in idx.iter().enumerate() {
-                jtr[i] += val[a] * r;
-                for (b, &j) in idx.iter().enumerate() {
-                    jtj[i * m + j] += val[a] * val[b];
-                }
-            }
-        });
+        let (jtj, jtr) = normal_equations(target, &lobes, o, prior, arr);
         // Freeze parameters at a bound whose descent direction points outward.
         let mut frozen = vec![false; m];
         for (k, l) in lobes.iter().enumerate() {
@@ -428,7 +647,7 @@ fn levenberg_marquardt(
                 continue;
             };
             let cand = apply_step(&lobes, &d, o);
-            let c = objective(target, &cand, o, prior);
+            let c = objective(target, &cand, o, prior, arr);
             if c < cost {
                 let rel = (cost - c) / cost;
                 lobes = cand;
@@ -447,7 +666,7 @@ fn levenberg_marquardt(
 }
 
 fn finish(target: &FitTarget, lobes: Vec<Lobe64>, cost: f64, it: usize, o: &FitOptions) -> SgFit {
-    let data = objective(target, &lobes, o, None);
+    let data = objective(target, &lobes, o, None, None);
     let n2 = target.norm2();
     SgFit {
         lobes: lobes.into_iter().map(Lobe64::to_lobe).collect(),
@@ -470,7 +689,7 @@ pub fn objective_of(
     let l: Vec<_> = lobes.iter().map(Lobe64::from_lobe).collect();
     let p: Option<Vec<_>> = prior.map(|p| p.iter().map(Lobe64::from_lobe).collect());
     debug_assert!(p.as_ref().is_none_or(|p| p.len() == l.len()));
-    objective(target, &l, opts, p.as_deref())
+    objective(target, &l, opts, p.as_deref(), None)
 }
 
 /// Refines `initial` lobes by bounded Levenberg-Marquardt (no greedy initialisation).
@@ -484,6 +703,22 @@ pub fn refine(
     opts: &FitOptions,
     prior: Option<&[SgLobe]>,
 ) -> SgFit {
+    refine_arranged(target, initial, opts, prior, None)
+}
+
+/// [`refine`] with Green's spatial arrangement term (eq. 2.6) against the lobes of already
+/// fitted neighbouring vertices (module docs). The returned `cost` includes the term.
+///
+/// # Panics
+/// As [`refine`]; debug builds also assert `arrangement.neighbours.len()` is a multiple of
+/// the lobe count.
+pub fn refine_arranged(
+    target: &FitTarget,
+    initial: &[SgLobe],
+    opts: &FitOptions,
+    prior: Option<&[SgLobe]>,
+    arrangement: Option<&Arrangement>,
+) -> SgFit {
     debug_assert!(initial
         .iter()
         .all(|g| g.sharpness >= opts.lambda_min * 0.999
@@ -492,7 +727,8 @@ pub fn refine(
     let l: Vec<_> = initial.iter().map(Lobe64::from_lobe).collect();
     let p: Option<Vec<_>> = prior.map(|p| p.iter().map(Lobe64::from_lobe).collect());
     debug_assert!(p.as_ref().is_none_or(|p| p.len() == l.len()));
-    let (l, c, it) = levenberg_marquardt(target, l, opts, p.as_deref());
+    let a = arrangement.and_then(|a| Arr64::new(a, l.len()));
+    let (l, c, it) = levenberg_marquardt(target, l, opts, p.as_deref(), a.as_ref());
     finish(target, l, c, it, opts)
 }
 
@@ -509,7 +745,7 @@ pub fn fit(target: &FitTarget, n: usize, opts: &FitOptions, prior: Option<&[SgLo
     debug_assert!(prior.is_none_or(|p| p.len() == n));
     let p: Option<Vec<Lobe64>> = prior.map(|p| p.iter().map(Lobe64::from_lobe).collect());
     if let Some(p) = &p {
-        let (l, c, it) = levenberg_marquardt(target, p.clone(), opts, Some(p));
+        let (l, c, it) = levenberg_marquardt(target, p.clone(), opts, Some(p), None);
         return finish(target, l, c, it, opts);
     }
     let (lo, hi) = (opts.lambda_min as f64, opts.lambda_max as f64);
@@ -566,7 +802,7 @@ pub fn fit(target: &FitTarget, n: usize, opts: &FitOptions, prior: Option<&[SgLo
             l.a = best.2;
         }
         lobes.push(l);
-        let (l2, c, it) = levenberg_marquardt(target, lobes, opts, None);
+        let (l2, c, it) = levenberg_marquardt(target, lobes, opts, None, None);
         lobes = l2;
         cost = c;
         iterations += it;
@@ -661,19 +897,57 @@ mod tests {
             },
             ..FitOptions::default()
         };
+        // A neighbour whose two lobes are swapped: the arrangement term is active.
+        let swapped = [t[1], t[0]];
+        let arr = Arr64::new(
+            &Arrangement {
+                weight: 0.4,
+                neighbours: &swapped,
+            },
+            2,
+        );
         let dense = |l: &[Lobe64]| {
             let (mut r, mut j) = (vec![], vec![]);
-            for_each_row(&target, l, &o, Some(&prior), |x, idx, val| {
-                r.push(x);
-                let mut row = vec![0.0; 12];
-                for (&i, &v) in idx.iter().zip(val) {
-                    row[i] += v;
-                }
-                j.push(row);
-            });
+            for_each_row(
+                &target,
+                l,
+                &o,
+                Some(&prior),
+                arr.as_ref(),
+                true,
+                |x, idx, val| {
+                    r.push(x);
+                    let mut row = vec![0.0; 12];
+                    for (&i, &v) in idx.iter().zip(val) {
+                        row[i] += v;
+                    }
+                    j.push(row);
+                },
+            );
             (r, j)
         };
-        let (_, jac) = dense(&lobes);
+        let (res, jac) = dense(&lobes);
+        // The structured normal equations equal J^T J and J^T r of the rows.
+        let (jtj, jtr) = normal_equations(&target, &lobes, &o, Some(&prior), arr.as_ref());
+        for a in 0..12 {
+            let g: f64 = (0..res.len()).map(|i| jac[i][a] * res[i]).sum();
+            assert!(
+                (g - jtr[a]).abs() < 1e-9 * (1.0 + g.abs()),
+                "jtr {a}: {g} {}",
+                jtr[a]
+            );
+            for b in 0..12 {
+                let h: f64 = (0..res.len()).map(|i| jac[i][a] * jac[i][b]).sum();
+                let x = jtj[a * 12 + b];
+                assert!(
+                    (h - x).abs() < 1e-9 * (1.0 + h.abs()),
+                    "jtj {a} {b}: {h} {x}"
+                );
+            }
+        }
+        let cost: f64 = res.iter().map(|r| r * r).sum();
+        let fast = objective(&target, &lobes, &o, Some(&prior), arr.as_ref());
+        assert!((cost - fast).abs() < 1e-12 * cost, "{cost} {fast}");
         let h = 1e-6;
         for p in 0..12 {
             let mut d = vec![0.0; 12];
@@ -736,14 +1010,46 @@ mod tests {
         // And it is a real saving: count the texels the data term visits.
         let lobes: Vec<Lobe64> = a.lobes.iter().map(Lobe64::from_lobe).collect();
         let mut rows = 0;
-        for_each_row(&target, &lobes, &FitOptions::default(), None, |_, _, _| {
-            rows += 1
-        });
+        for_each_row(
+            &target,
+            &lobes,
+            &FitOptions::default(),
+            None,
+            None,
+            true,
+            |_, _, _| rows += 1,
+        );
         assert!(
             rows < target.len() * 3 / 4,
             "{rows} of {}",
             3 * target.len()
         );
+    }
+
+    #[test]
+    fn arrangement_term_vanishes_when_consistent_and_penalises_flips() {
+        let t = truth(2);
+        let target = target_of(12, |d| eval_mixture(&t, d));
+        let o = FitOptions::default();
+        let plain = refine(&target, &t, &o, None);
+        let same = Arrangement {
+            weight: 1.0,
+            neighbours: &t,
+        };
+        let consistent = refine_arranged(&target, &t, &o, None, Some(&same));
+        // Same arrangement as the neighbour: the term is exactly zero, the fit unchanged.
+        assert_eq!(plain.cost, consistent.cost);
+        let swapped = [t[1], t[0]];
+        let flipped = Arrangement {
+            weight: 1.0,
+            neighbours: &swapped,
+        };
+        let f = refine_arranged(&target, &t, &o, None, Some(&flipped));
+        // Against a swapped neighbour the term is positive: (|mu_1 - mu_2|^2)^3 at the start,
+        // and the solver trades data error for a smaller term (axes pulled together).
+        assert!(f.cost > 1e-3, "{}", f.cost);
+        let sep = |l: &[SgLobe]| l[0].axis.angle_between(l[1].axis);
+        assert!(sep(&f.lobes) < sep(&t), "{} {}", sep(&f.lobes), sep(&t));
     }
 
     #[test]

@@ -1,0 +1,427 @@
+//! The fit of all views of one vertex (thesis section 2.2.2, eq. 2.2-2.6): two Gauss-Seidel
+//! sweeps over the views in breadth-first order on the view icosahedron, each view refined
+//! against its data (eq. 2.3), the average of its neighbouring views (eq. 2.4, 2.5) and the
+//! arrangement of the already processed neighbouring vertices (eq. 2.6).
+
+use super::target::{group, CubeTables, ViewTarget};
+use crate::sg::SgFitSettings;
+use glam::Vec3;
+use relight_sphere::icosphere::Icosphere;
+use relight_sphere::sg::{unit_integral, SgLobe};
+use relight_sphere::sg_fit::{self, Arrangement, FitOptions, PriorWeights};
+
+/// A warm start whose fit leaves more than this relative L2 error is checked against a greedy
+/// fit from scratch (the warm start may sit in another basin, e.g. across a shadow boundary).
+const RETRY_ERROR: f64 = 0.8;
+
+/// Weight of `(ln lambda - ln lambda')^2` against `|mu - mu'|^2` in the lobe distance used to
+/// match lobes ([`lobe_distance`]).
+const WIDTH_MATCH: f32 = 0.1;
+
+/// Everything the fit of one component needs that does not change between vertices.
+#[derive(Clone, Debug)]
+pub struct ComponentFit {
+    /// Texel tables of the component's cube map.
+    pub tables: CubeTables,
+    /// Lobes per view.
+    pub lobes: usize,
+    /// Solver options (sharpness bounds from the resolution, iterations from the settings).
+    pub opts: FitOptions,
+    /// The fit weights.
+    pub settings: SgFitSettings,
+    /// Neighbouring views of each view (the frequency-3 icosahedron).
+    pub view_neighbours: Vec<Vec<usize>>,
+}
+
+impl ComponentFit {
+    /// The fit of a component on an `n x n`-per-face cube map with `lobes` lobes per view.
+    ///
+    /// The sharpness is bounded by `(n / 2)^2`, the finest lobe the cube map resolves (a
+    /// standard deviation of about one texel, `sg_fit::FitOptions::lambda_max`).
+    pub fn new(n: usize, lobes: usize, settings: &SgFitSettings, views: &Icosphere) -> Self {
+        debug_assert!(n >= 1 && (1..=10).contains(&lobes));
+        let lambda_max = ((n as f32 / 2.0).powi(2)).max(1.0);
+        ComponentFit {
+            tables: CubeTables::new(n),
+            lobes,
+            opts: FitOptions {
+                lambda_min: 0.05f32.min(0.5 * lambda_max),
+                lambda_max,
+                max_iterations: settings.max_iterations,
+                tolerance: 1e-3,
+                ..FitOptions::default()
+            },
+            settings: *settings,
+            view_neighbours: (0..views.vertices().len())
+                .map(|v| views.neighbours(v).iter().map(|&u| u as usize).collect())
+                .collect(),
+        }
+    }
+
+    /// Number of views.
+    pub fn views(&self) -> usize {
+        self.view_neighbours.len()
+    }
+
+    /// Default lobes of a vertex without data and without neighbours: zero amplitude, the
+    /// broadest sharpness, axis +Y.
+    fn default_lobe(&self) -> SgLobe {
+        SgLobe::new(Vec3::Y, self.opts.lambda_min, Vec3::ZERO)
+    }
+}
+
+/// The result of fitting one vertex: `views * lobes` lobes (view-major) and error statistics.
+#[derive(Clone, Debug, Default)]
+pub struct VertexFit {
+    /// Lobes, `lobes[v * n + k]`.
+    pub lobes: Vec<SgLobe>,
+    /// Relative L2 error per view (negative: no data, or not refitted in a relaxation).
+    pub errors: Vec<f64>,
+    /// Levenberg-Marquardt iterations spent.
+    pub iterations: u64,
+}
+
+/// Distance of two lobes for matching: `|mu - mu'|^2 + 0.1 (ln lambda - ln lambda')^2`.
+pub fn lobe_distance(a: &SgLobe, b: &SgLobe) -> f32 {
+    let dl = a.sharpness.ln() - b.sharpness.ln();
+    (a.axis - b.axis).length_squared() + WIDTH_MATCH * dl * dl
+}
+
+/// The assignment `perm` minimising `sum_k cost[k * n + perm[k]]` (lobe `perm[k]` takes slot
+/// `k`): brute force for `n <= 3` (the identity wins ties), greedy (slot by slot, the
+/// cheapest free lobe) beyond.
+pub fn best_assignment(cost: &[f32], n: usize) -> Vec<usize> {
+    debug_assert_eq!(cost.len(), n * n);
+    let total = |p: &[usize]| {
+        p.iter()
+            .enumerate()
+            .map(|(k, &j)| cost[k * n + j])
+            .sum::<f32>()
+    };
+    let perms: &[&[usize]] = match n {
+        2 => &[&[0, 1], &[1, 0]],
+        3 => &[
+            &[0, 1, 2],
+            &[0, 2, 1],
+            &[1, 0, 2],
+            &[1, 2, 0],
+            &[2, 0, 1],
+            &[2, 1, 0],
+        ],
+        _ => &[],
+    };
+    if n <= 1 {
+        return (0..n).collect();
+    }
+    if !perms.is_empty() {
+        let mut best = (total(perms[0]), perms[0]);
+        for p in &perms[1..] {
+            let c = total(p);
+            if c < best.0 {
+                best = (c, p);
+            }
+        }
+        return best.1.to_vec();
+    }
+    let mut used = vec![false; n];
+    (0..n)
+        .map(|k| {
+            let j = (0..n)
+                .filter(|&j| !used[j])
+                .min_by(|&a, &b| cost[k * n + a].total_cmp(&cost[k * n + b]))
+                .unwrap_or(0);
+            used[j] = true;
+            j
+        })
+        .collect()
+}
+
+/// The permutation of `lobes` that best matches `reference` (slot `k` gets `lobes[perm[k]]`).
+pub fn match_to(lobes: &[SgLobe], reference: &[SgLobe]) -> Vec<usize> {
+    match_to_all(lobes, &[reference])
+}
+
+/// The permutation of `lobes` that best matches all `references` at once (summed distance).
+pub fn match_to_all(lobes: &[SgLobe], references: &[&[SgLobe]]) -> Vec<usize> {
+    let n = lobes.len();
+    let cost: Vec<f32> = (0..n * n)
+        .map(|i| {
+            references
+                .iter()
+                .map(|r| lobe_distance(&lobes[i % n], &r[i / n]))
+                .sum()
+        })
+        .collect();
+    best_assignment(&cost, n)
+}
+
+fn permuted(lobes: &[SgLobe], perm: &[usize]) -> Vec<SgLobe> {
+    perm.iter().map(|&j| lobes[j]).collect()
+}
+
+/// The average of several lobe sets (slot by slot): normalised mean axis, mean log
+/// sharpness, mean amplitude. This is the prior of eq. 2.4 and 2.5 (module docs of
+/// [`super`] on why the axis is normalised and the width averaged in log space).
+pub fn average(sets: &[&[SgLobe]], n: usize) -> Vec<SgLobe> {
+    debug_assert!(!sets.is_empty());
+    (0..n)
+        .map(|k| {
+            let (mut axis, mut ll, mut amp) = (Vec3::ZERO, 0.0, Vec3::ZERO);
+            for s in sets {
+                axis += s[k].axis;
+                ll += s[k].sharpness.ln();
+                amp += s[k].amplitude;
+            }
+            let m = sets.len() as f32;
+            SgLobe {
+                axis: axis.try_normalize().unwrap_or(sets[0][k].axis),
+                sharpness: (ll / m).exp(),
+                amplitude: amp / m,
+            }
+        })
+        .collect()
+}
+
+/// How a vertex is fitted.
+pub struct VertexInput<'a> {
+    /// The component's data, `views * 6 n^2` texels.
+    pub data: &'a [Vec3],
+    /// A warm start for every view (`views * lobes`): the lobes of the processed neighbour
+    /// the vertex was reached from, or during relaxation the vertex's own lobes.
+    pub warm: Option<&'a [SgLobe]>,
+    /// The lobes (`views * lobes` each) of the neighbouring vertices of the spatial term.
+    pub spatial: &'a [&'a [SgLobe]],
+    /// Relaxation: `warm` already holds a complete, matched fit; refit only the views whose
+    /// bit is set in this mask (view `v` is bit `v`), in one sweep.
+    pub relax: Option<u128>,
+}
+
+/// Fits every view of one vertex (module docs). Deterministic.
+pub fn fit_vertex(c: &ComponentFit, input: &VertexInput) -> VertexFit {
+    let (nv, n) = (c.views(), c.lobes);
+    let texels = c.tables.texels();
+    debug_assert_eq!(input.data.len(), nv * texels);
+    debug_assert!(nv <= 128);
+    let active = |v: usize| input.relax.is_none_or(|m| m >> v & 1 == 1);
+    // Only the views being fitted are grouped (a relaxation refits few).
+    let targets: Vec<Option<ViewTarget>> = (0..nv)
+        .map(|v| active(v).then(|| group(&c.tables, &input.data[v * texels..(v + 1) * texels])))
+        .collect();
+    let order: Vec<usize> = view_order(c, &targets)
+        .into_iter()
+        .filter(|&v| active(v))
+        .collect();
+    let mut out = VertexFit {
+        lobes: vec![c.default_lobe(); nv * n],
+        errors: vec![-1.0; nv],
+        iterations: 0,
+    };
+    let mut assigned = vec![false; nv];
+    let relax = input.relax.is_some();
+    if relax {
+        if let Some(w) = input.warm {
+            out.lobes.copy_from_slice(w);
+            assigned.fill(true);
+        }
+    }
+    let sweeps = if relax { 1 } else { 2 };
+    for sweep in 0..sweeps {
+        for &v in &order {
+            let first = sweep == 0 && !relax;
+            let Some(target) = &targets[v] else {
+                continue;
+            };
+            let nb: Vec<&[SgLobe]> = c.view_neighbours[v]
+                .iter()
+                .filter(|&&u| assigned[u])
+                .map(|&u| &out.lobes[u * n..(u + 1) * n])
+                .collect();
+            let prior = (!nb.is_empty()).then(|| average(&nb, n));
+            let warm: Option<Vec<SgLobe>> = if first {
+                input
+                    .warm
+                    .map(|w| w[v * n..(v + 1) * n].to_vec())
+                    .or_else(|| prior.clone())
+            } else {
+                Some(out.lobes[v * n..(v + 1) * n].to_vec())
+            };
+            let spatial: Vec<SgLobe> = input
+                .spatial
+                .iter()
+                .flat_map(|s| s[v * n..(v + 1) * n].iter().copied())
+                .collect();
+            let (lobes, err, it) = fit_view(c, target, warm, prior, &spatial, first);
+            out.lobes[v * n..(v + 1) * n].copy_from_slice(&lobes);
+            out.errors[v] = if target.norm2 > 0.0 { err } else { -1.0 };
+            out.iterations += it as u64;
+            assigned[v] = true;
+        }
+    }
+    out
+}
+
+/// Views in breadth-first order on the view icosahedron from the view with the most data
+/// energy (ties: lowest index), so that every view after the first has a fitted neighbour.
+fn view_order(c: &ComponentFit, targets: &[Option<ViewTarget>]) -> Vec<usize> {
+    let energy = |v: usize| targets[v].as_ref().map_or(-1.0, |t| t.norm2);
+    let start = (0..targets.len()).fold(0, |b, v| if energy(v) > energy(b) { v } else { b });
+    let mut seen = vec![false; targets.len()];
+    let mut order = vec![start];
+    seen[start] = true;
+    let mut i = 0;
+    while i < order.len() {
+        for &u in &c.view_neighbours[order[i]] {
+            if !seen[u] {
+                seen[u] = true;
+                order.push(u);
+            }
+        }
+        i += 1;
+    }
+    order
+}
+
+/// Fits one view: returns its lobes (matched to the prior, or else to the warm start), the
+/// relative L2 error and the iterations spent. Only in the `first` sweep of a flood fill is
+/// a poor warm start checked against a greedy fit.
+fn fit_view(
+    c: &ComponentFit,
+    t: &ViewTarget,
+    warm: Option<Vec<SgLobe>>,
+    prior: Option<Vec<SgLobe>>,
+    spatial: &[SgLobe],
+    first: bool,
+) -> (Vec<SgLobe>, f64, usize) {
+    let n = c.lobes;
+    let reference = prior.clone().or_else(|| warm.clone());
+    // Lobes are matched to the prior (or warm start) and to every spatial neighbour at once.
+    let references: Vec<&[SgLobe]> = reference
+        .as_deref()
+        .into_iter()
+        .chain(spatial.chunks_exact(n))
+        .collect();
+    // No data (fully occluded view): zero amplitude, mean and width from the alignment prior
+    // (or the warm start), so that interpolation across views stays smooth (section 2.2.2).
+    if t.norm2 <= 0.0 {
+        let mut l = reference.unwrap_or_else(|| vec![c.default_lobe(); n]);
+        for g in &mut l {
+            g.amplitude = Vec3::ZERO;
+        }
+        return (l, 0.0, 0);
+    }
+    // Weights relative to the view's data energy, so they do not depend on its brightness.
+    let s = &c.settings;
+    let opts = FitOptions {
+        prior_weights: PriorWeights {
+            mean: s.mean_weight * t.norm2,
+            width: s.width_weight * t.norm2,
+        },
+        ..c.opts
+    };
+    let arr = Arrangement {
+        weight: s.spatial_weight * t.norm2,
+        neighbours: spatial,
+    };
+    let arr = (!spatial.is_empty() && s.spatial_weight > 0.0).then_some(&arr);
+    let clamp = |l: &[SgLobe]| -> Vec<SgLobe> {
+        l.iter()
+            .map(|g| SgLobe {
+                sharpness: g.sharpness.clamp(opts.lambda_min, opts.lambda_max),
+                ..*g
+            })
+            .collect()
+    };
+    let mut iterations = 0;
+    let mut best = None;
+    if let Some(w) = &warm {
+        let f = sg_fit::refine_arranged(&t.target, &clamp(w), &opts, prior.as_deref(), arr);
+        iterations += f.iterations;
+        best = Some(f);
+    }
+    let retry = best.as_ref().is_none_or(|f| {
+        first
+            && (f.relative_error > RETRY_ERROR || f.lobes.iter().all(|g| g.amplitude == Vec3::ZERO))
+    });
+    if retry {
+        let g = sg_fit::fit(&t.target, n, &c.opts, None);
+        iterations += g.iterations;
+        let g = match &reference {
+            // Match the fresh fit to the neighbours, then let the coherence terms act.
+            Some(_) => {
+                let l = permuted(&g.lobes, &match_to_all(&g.lobes, &references));
+                let f = sg_fit::refine_arranged(&t.target, &l, &opts, prior.as_deref(), arr);
+                iterations += f.iterations;
+                f
+            }
+            None => g,
+        };
+        if best
+            .as_ref()
+            .is_none_or(|b| g.relative_error < b.relative_error)
+        {
+            best = Some(g);
+        }
+    }
+    let f = best.expect("a warm start or a greedy fit");
+    let mut lobes = if references.is_empty() {
+        f.lobes
+    } else {
+        permuted(&f.lobes, &match_to_all(&f.lobes, &references))
+    };
+    preserve_energy(&mut lobes, t, opts.lambda_max);
+    if s.energy {
+        conserve_energy(&mut lobes, t);
+    }
+    (lobes, f.relative_error, iterations)
+}
+
+/// Rescale the amplitudes, per channel, so that the mixture's integral over the sphere equals
+/// the data's, `sum_k a_k int G_k = sum_w T(w) dA(w)` (our addition to the paper, on by
+/// default, [`SgFitSettings::energy`]): a least-squares Gaussian misses the long tails of a
+/// GGX or Blinn-Phong lobe (about 20 % of the energy for a GGX conductor at alpha 0.15, one
+/// lobe), which shows as a uniformly too-dark render; with the integral matched a constant
+/// environment is rendered exactly and smooth lighting nearly so. The factor is bounded to
+/// `[1/4, 4]` so that a failed fit is not blown up.
+fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget) {
+    let have = lobes.iter().fold(Vec3::ZERO, |e, g| {
+        e + g.amplitude * unit_integral(g.sharpness)
+    });
+    let ok = have.cmpgt(Vec3::splat(f32::MIN_POSITIVE)) & t.integral.cmpgt(Vec3::ZERO);
+    let scale = Vec3::select(
+        ok,
+        (t.integral / have).clamp(Vec3::splat(0.25), Vec3::splat(4.0)),
+        Vec3::ONE,
+    );
+    for g in lobes.iter_mut() {
+        g.amplitude *= scale;
+    }
+}
+
+/// Lobes at the sharpness bound (data sharper than the cube map resolves, e.g. a mirror) get
+/// their amplitude rescaled so that the mixture's integral matches the data's, per channel:
+/// the least-squares amplitude of a too-broad lobe under-spreads a peak's energy (for a
+/// single-texel spike it is twice the energy-preserving one). A clamped lobe with a negligible
+/// share of the energy keeps its amplitude; the factor is capped at 4.
+fn preserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, lambda_max: f32) {
+    let at_bound = |g: &SgLobe| g.sharpness >= 0.999 * lambda_max;
+    if !lobes.iter().any(at_bound) {
+        return;
+    }
+    let (mut free, mut bound) = (Vec3::ZERO, Vec3::ZERO);
+    for g in lobes.iter() {
+        let e = g.amplitude * unit_integral(g.sharpness);
+        if at_bound(g) {
+            bound += e;
+        } else {
+            free += e;
+        }
+    }
+    // Only a lobe that carries a real share of the energy is rescaled, by at most 4x (the
+    // least-squares amplitude of a spike is half the energy-preserving one).
+    let want = (t.integral - free).max(Vec3::ZERO);
+    let meaningful = bound.cmpgt(want * 1e-3) & bound.cmpgt(Vec3::splat(f32::MIN_POSITIVE));
+    let scale = Vec3::select(meaningful, (want / bound).min(Vec3::splat(4.0)), Vec3::ONE);
+    for g in lobes.iter_mut().filter(|g| at_bound(g)) {
+        g.amplitude *= scale;
+    }
+}

@@ -1,0 +1,210 @@
+//! View-dependent glossy PRT with spherical Gaussians (Green 2005, "View-dependent
+//! precomputed light transport using non-linear Gaussian function approximations"; the thesis
+//! text is `../shared/papers/green-2005-view-dependent-prt-gaussians.md`).
+//!
+//! # What is baked (thesis section 2.2.1, 3.1)
+//! For every vertex `x` and each of the 92 view directions `v` of a frequency-3 geodesic
+//! icosahedron ([`relight_sphere::icosphere::Icosphere`], **global frame**, as the paper), the
+//! outgoing radiance is split into
+//! * **direct glossy** transport `T_x,v(w) = f_glossy(v, w) cos(w) V_x(w)`, tabulated on a cube
+//!   map of `direct_res` (default 6x32x32) texels `w`;
+//! * **indirect glossy** transport (BRDF-importance-sampled paths leaving `x` towards `-v`,
+//!   recorded in the texel of the direction in which they escape), on a coarse cube map of
+//!   `indirect_res` (default 6x8x8);
+//! * the **view-independent diffuse** part, projected to SH (order 5 default) from the same
+//!   visibility cube map: `(1/pi) sum_w y_i(w) V_x(w) cos(w) k_x(cos w) dA(w)` with the
+//!   material's light-side factor `k_x` ([`relight_scene::material::Material::diffuse_factors`]);
+//!   the diffuse albedo and the view-side factor are applied at render time.
+//!
+//! Each cube map is the kernel of `L_o(x, v) = sum_w T_x,v(w) L(w) dA(w)`: radiance in,
+//! radiance out, per steradian. Each is then fitted by `N` spherical Gaussians ([`SgLobe`]) so
+//! that `L_o ~= sum_k a_k int G_k(w) L(w) dw` (eq. 2.7), which the renderer evaluates with one
+//! Gaussian-prefiltered cube-map fetch per lobe.
+//!
+//! # Views below the horizon
+//! A view `v` with `n_x . v < sin(horizon_deg)` cannot see `x`. Its lobes are fitted to the
+//! transport of the view clamped to `horizon_deg` above the shading horizon (the nearest
+//! visible view), so that interpolating the three nearest views near grazing angles stays
+//! continuous instead of fading to black.
+//!
+//! # Layout of [`SgLobes::lobes`]
+//! `lobes[(x * view_count + v) * lobe_count + k]`: vertex-major, then view, then lobe.
+
+pub mod fit;
+mod settings;
+pub mod transport;
+
+use relight_scene::material::Material;
+use relight_sphere::sg::SgLobe;
+
+pub use crate::sh::ShTransfer;
+
+/// Number of view directions: the vertices of a frequency-3 geodesic icosahedron.
+pub const VIEW_FREQUENCY: usize = 3;
+
+/// Fitted lobes of one transport component (layout in the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SgLobes {
+    /// Lobes per vertex and view, `N`.
+    pub lobe_count: usize,
+    /// Views per vertex (92 for frequency 3).
+    pub view_count: usize,
+    /// `vertex_count * view_count * lobe_count` lobes; unused lobes have zero amplitude.
+    pub lobes: Vec<SgLobe>,
+}
+
+impl SgLobes {
+    /// The `lobe_count` lobes of vertex `x` seen from view `v`.
+    #[inline]
+    pub fn get(&self, x: usize, v: usize) -> &[SgLobe] {
+        let i = (x * self.view_count + v) * self.lobe_count;
+        &self.lobes[i..i + self.lobe_count]
+    }
+}
+
+/// Fitting statistics of a bake (for reports and the flipping analysis).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SgFitStats {
+    /// Mean relative L2 error of the fits over all (vertex, view) pairs with non-zero data,
+    /// per component (direct, indirect).
+    pub mean_relative_error: [f64; 2],
+    /// Levenberg-Marquardt iterations spent in total.
+    pub iterations: u64,
+    /// Lobe-correspondence failures ("flips") between neighbouring vertices after the flood
+    /// fill: pairs of adjacent vertices and a view where the best lobe permutation is not the
+    /// identity (thesis section 3.4).
+    pub flips: u64,
+    /// The same count after the relaxation sweeps.
+    pub flips_after_relaxation: u64,
+}
+
+/// A complete SG bake: what `relight render --method sg` needs.
+#[derive(Clone, Debug)]
+pub struct SgBake {
+    /// Frequency of the view icosahedron (3: 92 views).
+    pub view_frequency: usize,
+    /// Direct glossy lobes.
+    pub direct: SgLobes,
+    /// Indirect glossy lobes (`None` when `indirect_lobes` was 0).
+    pub indirect: Option<SgLobes>,
+    /// Diffuse SH transfer: single channel, shadowed, with the light-side factor and `1/pi`,
+    /// without the albedo (layout of [`ShTransfer`]).
+    pub diffuse: ShTransfer,
+    /// The material of each vertex (spatially varying BRDFs, thesis section 2.3.1).
+    pub materials: Vec<Material>,
+    /// How the fit went.
+    pub stats: SgFitStats,
+}
+
+/// Settings of the fit (thesis section 2.2.2, eq. 2.2-2.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SgFitSettings {
+    /// Levenberg-Marquardt iterations per (vertex, view) refinement.
+    pub max_iterations: usize,
+    /// Weight `beta` of the mean-alignment term across neighbouring views (eq. 2.4).
+    pub mean_weight: f64,
+    /// Weight `gamma` of the width-alignment term across neighbouring views (eq. 2.5).
+    pub width_weight: f64,
+    /// Weight `delta` of the spatial arrangement term across processed neighbours (eq. 2.6).
+    pub spatial_weight: f64,
+    /// Relaxation sweeps after the flood fill (the paper's suggested future work, sec. 3.4).
+    pub relax_sweeps: usize,
+    /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
+    pub regions: usize,
+    /// Rescale each fitted (vertex, view)'s amplitudes so that the lobes' integral equals the
+    /// data's (our addition, default on; `fit::vertex` docs): a constant environment is then
+    /// rendered exactly.
+    pub energy: bool,
+}
+
+/// Settings of the SG bake ([`SgBake`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SgBakeSettings {
+    /// Face size of the direct-glossy cube map (default 32: 6x32x32).
+    pub direct_res: usize,
+    /// Face size of the indirect-glossy cube map (default 8: 6x8x8).
+    pub indirect_res: usize,
+    /// Paths per (vertex, view) for the indirect glossy component.
+    pub indirect_paths: u32,
+    /// Maximum bounces of an indirect path after leaving the vertex.
+    pub max_depth: u32,
+    /// SH order of the diffuse part (default 5).
+    pub diffuse_order: usize,
+    /// Views below this elevation (degrees) over the shading horizon are clamped to it.
+    pub horizon_deg: f32,
+    /// Trace visibility (default). `false` bakes every texel above the horizons as visible:
+    /// the transport of prefiltered environment mapping, which ignores shadowing (the
+    /// baseline of the paper's Fig. 3-5), in the same representation.
+    pub visibility: bool,
+    /// Gaussians for the direct glossy component, `1..=10`.
+    pub direct_lobes: usize,
+    /// Gaussians for the indirect glossy component, `0..=10` (0: no indirect component).
+    pub indirect_lobes: usize,
+    /// Fit settings.
+    pub fit: SgFitSettings,
+    /// Seed of all random numbers (the bake is deterministic for a seed, any thread count).
+    pub seed: u64,
+    /// Worker threads; `None` = all cores.
+    pub threads: Option<usize>,
+    /// Show a progress bar on stderr.
+    pub progress: bool,
+}
+
+/// Bake the SG transport of a mesh: tabulate ([`transport`]) and fit ([`fit`]) every vertex
+/// and view, plus the diffuse SH part.
+///
+/// `materials` is the scene's per-triangle material list (indexed by `mesh.material_ids`);
+/// each vertex takes the material of its triangles ([`transport::vertex_materials`]) unless
+/// `vertex_materials` overrides it (spatially varying BRDFs, thesis section 2.3.1).
+///
+/// # Errors
+/// [`BakeError::Settings`] for out-of-range settings, [`BakeError::Scene`] for an
+/// inconsistent mesh.
+pub fn bake(
+    mesh: &relight_scene::mesh::TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &dyn relight_scene::accel::RayCaster,
+    settings: &SgBakeSettings,
+) -> Result<SgBake, crate::BakeError> {
+    settings.validate()?;
+    let vm = match vertex_materials {
+        Some(v) => v.to_vec(),
+        None => {
+            crate::transport::check_mesh(mesh, materials)?;
+            transport::vertex_materials(mesh, materials)
+        }
+    };
+    let ctx = transport::TransportContext::new(mesh, vm.clone(), caster, settings)?;
+    let config = fit::FitConfig {
+        direct_lobes: settings.direct_lobes,
+        indirect_lobes: settings.indirect_lobes,
+        fit: settings.fit,
+    };
+    let progress =
+        crate::transport::progress_bar(settings.progress, mesh.vertex_count() as u64, "sg bake");
+    let fitted = crate::transport::with_threads(settings.threads, || {
+        fit::fit_mesh(&ctx, &mesh.indices, &config, &progress)
+    })?;
+    progress.finish_and_clear();
+    let order = (fitted.diffuse_stride as f64).sqrt().round() as usize;
+    debug_assert!(mesh.vertex_count() == 0 || order * order == fitted.diffuse_stride);
+    Ok(SgBake {
+        view_frequency: VIEW_FREQUENCY,
+        direct: fitted.direct,
+        indirect: fitted.indirect,
+        diffuse: ShTransfer {
+            order: if mesh.vertex_count() == 0 {
+                settings.diffuse_order
+            } else {
+                order
+            },
+            kind: crate::sh::ShTransferKind::Shadowed,
+            vertex_count: mesh.vertex_count(),
+            channels: 1,
+            data: fitted.diffuse_sh,
+        },
+        materials: vm,
+        stats: fitted.stats,
+    })
+}

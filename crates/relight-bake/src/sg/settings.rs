@@ -1,0 +1,215 @@
+//! Defaults and validation of [`SgBakeSettings`] and [`SgFitSettings`] (thesis section 3.1
+//! for the resolutions, 2.2.2 for the fit weights).
+
+use super::{SgBakeSettings, SgFitSettings};
+use crate::BakeError;
+use relight_sphere::sh::MAX_ORDER;
+
+/// Largest number of Gaussians per (vertex, view) and component.
+pub const MAX_LOBES: usize = 10;
+
+/// Largest cube-map face size accepted (6x256x256 texels per view is already 36 MB per vertex).
+pub const MAX_CUBE_RES: usize = 256;
+
+/// Largest number of bounces of an indirect path.
+pub const MAX_DEPTH: u32 = 64;
+
+impl Default for SgFitSettings {
+    /// 30 Levenberg-Marquardt iterations, alignment weights 0.01, one relaxation sweep,
+    /// automatic regions.
+    fn default() -> Self {
+        SgFitSettings {
+            max_iterations: 30,
+            mean_weight: 0.01,
+            width_weight: 0.01,
+            spatial_weight: 0.01,
+            relax_sweeps: 1,
+            regions: 0,
+            energy: true,
+        }
+    }
+}
+
+impl SgFitSettings {
+    /// Check the ranges documented on each field.
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] naming the offending setting.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        let err = |m: String| Err(BakeError::Settings(m));
+        if self.max_iterations == 0 {
+            return err("fit.max_iterations must be at least 1".into());
+        }
+        for (name, w) in [
+            ("fit.mean_weight", self.mean_weight),
+            ("fit.width_weight", self.width_weight),
+            ("fit.spatial_weight", self.spatial_weight),
+        ] {
+            if !(w.is_finite() && w >= 0.0) {
+                return err(format!("{name} {w} must be finite and non-negative"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for SgBakeSettings {
+    /// The thesis' settings (section 3.1): 6x32x32 direct and 6x8x8 indirect cube maps, 64
+    /// indirect paths of at most 3 bounces, diffuse SH order 5, views clamped 5 degrees above
+    /// the horizon, one lobe per component, seed 0, all cores, no progress bar.
+    fn default() -> Self {
+        SgBakeSettings {
+            direct_res: 32,
+            indirect_res: 8,
+            indirect_paths: 64,
+            max_depth: 3,
+            diffuse_order: 5,
+            horizon_deg: 5.0,
+            visibility: true,
+            direct_lobes: 1,
+            indirect_lobes: 1,
+            fit: SgFitSettings::default(),
+            seed: 0,
+            threads: None,
+            progress: false,
+        }
+    }
+}
+
+impl SgBakeSettings {
+    /// Check the ranges documented on each field (and those of [`SgFitSettings`]).
+    ///
+    /// The indirect settings (`indirect_res`, `indirect_paths`, `max_depth`) are only checked
+    /// when `indirect_lobes > 0`.
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] naming the offending setting.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        let err = |m: String| Err(BakeError::Settings(m));
+        if !(1..=MAX_CUBE_RES).contains(&self.direct_res) {
+            return err(format!(
+                "direct_res {} is not in 1..={MAX_CUBE_RES}",
+                self.direct_res
+            ));
+        }
+        if !(1..=MAX_LOBES).contains(&self.direct_lobes) {
+            return err(format!(
+                "direct_lobes {} is not in 1..={MAX_LOBES}",
+                self.direct_lobes
+            ));
+        }
+        if self.indirect_lobes > MAX_LOBES {
+            return err(format!(
+                "indirect_lobes {} is not in 0..={MAX_LOBES}",
+                self.indirect_lobes
+            ));
+        }
+        if self.indirect_lobes > 0 {
+            if !(1..=MAX_CUBE_RES).contains(&self.indirect_res) {
+                return err(format!(
+                    "indirect_res {} is not in 1..={MAX_CUBE_RES}",
+                    self.indirect_res
+                ));
+            }
+            if self.indirect_paths == 0 {
+                return err("indirect_paths must be at least 1".into());
+            }
+            if !(1..=MAX_DEPTH).contains(&self.max_depth) {
+                return err(format!(
+                    "max_depth {} is not in 1..={MAX_DEPTH}",
+                    self.max_depth
+                ));
+            }
+        }
+        if !(1..=MAX_ORDER).contains(&self.diffuse_order) {
+            return err(format!(
+                "diffuse_order {} is not in 1..={MAX_ORDER}",
+                self.diffuse_order
+            ));
+        }
+        if !(self.horizon_deg.is_finite() && (0.0..90.0).contains(&self.horizon_deg)) {
+            return err(format!(
+                "horizon_deg {} is not in [0, 90)",
+                self.horizon_deg
+            ));
+        }
+        if self.threads == Some(0) {
+            return err("threads must be at least 1".into());
+        }
+        self.fit.validate()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_errors_name_the_field() {
+        let s = SgBakeSettings::default();
+        s.validate().unwrap();
+        let cases: [(&str, SgBakeSettings); 8] = [
+            ("direct_res", SgBakeSettings { direct_res: 0, ..s }),
+            (
+                "direct_lobes",
+                SgBakeSettings {
+                    direct_lobes: 11,
+                    ..s
+                },
+            ),
+            (
+                "indirect_lobes",
+                SgBakeSettings {
+                    indirect_lobes: 11,
+                    ..s
+                },
+            ),
+            (
+                "indirect_paths",
+                SgBakeSettings {
+                    indirect_paths: 0,
+                    ..s
+                },
+            ),
+            ("max_depth", SgBakeSettings { max_depth: 0, ..s }),
+            (
+                "diffuse_order",
+                SgBakeSettings {
+                    diffuse_order: 0,
+                    ..s
+                },
+            ),
+            (
+                "horizon_deg",
+                SgBakeSettings {
+                    horizon_deg: 90.0,
+                    ..s
+                },
+            ),
+            (
+                "fit.mean_weight",
+                SgBakeSettings {
+                    fit: SgFitSettings {
+                        mean_weight: -1.0,
+                        ..s.fit
+                    },
+                    ..s
+                },
+            ),
+        ];
+        for (name, bad) in cases {
+            match bad.validate() {
+                Err(BakeError::Settings(m)) => assert!(m.contains(name), "{name}: {m}"),
+                other => panic!("{name}: {other:?}"),
+            }
+        }
+        // Indirect settings are irrelevant without indirect lobes.
+        SgBakeSettings {
+            indirect_lobes: 0,
+            indirect_paths: 0,
+            ..s
+        }
+        .validate()
+        .unwrap();
+    }
+}

@@ -1,0 +1,583 @@
+//! Rendering of the `sg` method: view-dependent glossy PRT with spherical Gaussians (Green
+//! 2005, thesis section 2.3 and 3.2; the bake is `relight_bake::sg`).
+//!
+//! A frame is two passes:
+//! 1. **Per vertex** ([`SgRenderer::prepare`], parallel): the view `v = normalize(eye - x)` is
+//!    located on the view icosahedron ([`Icosphere::locate`]: triangle and spherical-cone
+//!    barycentrics `b`, `sum b = 1`), and the lobes `k` of its three views are blended
+//!    ([`blend3`]). The diffuse part `rho_x k_view(n_x . v) sum_i T_x,i L_i` is the SH dot
+//!    product of the bake's mono transfer with the world-frame SH of the environment
+//!    ([`crate::shade_sh::vertex_radiance`]) times the albedo and the material's view-side
+//!    factor (`Material::diffuse_factors`).
+//! 2. **Per pixel** (deferred shading on [`raster::render_deferred`]): the three vertices'
+//!    blended lobes are blended again with the fragment's perspective-correct barycentrics
+//!    (the per-pixel interpolation the paper calls critical, its figure 2-2) and each lobe
+//!    is integrated against the lighting with one trilinear fetch of the Gaussian-prefiltered
+//!    cube chain (eq. 2.7, figure 3-2's shader):
+//!    `L_o = sum_k a_k unit_integral(lambda_k) P(R mu_k, lambda_k)` with `R = env_from_world`,
+//!    plus the Gouraud-interpolated diffuse radiance.
+//!
+//! # Conventions
+//! * Lobes are [`SgLobe`]s `a exp(lambda (mu . w - 1))` with axes in the **world** frame in
+//!   the bake; [`SgRenderer::prepare`] rotates the blended axes into the **environment map's**
+//!   frame (`Environment::env_from_world`), so the prefiltered chain is built once per map
+//!   and a runtime rotation only re-rotates the SH of the diffuse part. Rotating a blend is
+//!   the same as blending rotated axes (rotation is linear and keeps lengths).
+//! * Blending (views and pixels alike): axes are summed with the weights and renormalised
+//!   (the paper's "normalising mean directions"); amplitudes and sharpnesses are blended
+//!   **linearly**. Linear sharpness is deliberate: for sharp lobes the integral is
+//!   `~ 2 pi a / lambda`, and `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
+//!   `a_j / lambda_j` (weights `w_j lambda_j`), so a blended lobe never carries more energy
+//!   than its brightest corner; blending `ln lambda` overshoots by up to
+//!   `(lambda_1 + lambda_2) / (2 sqrt(lambda_1 lambda_2))` between two lobes of equal energy.
+//!   It is also what the paper's vertex program does with its interpolated `mean_var`.
+//! * Radiance: `L(w) = scale * map(env_from_world w)`, as `Environment::radiance`.
+//! * Back-facing vertices keep the lobes of their view: the bake clamps views below the
+//!   horizon (see `relight_bake::sg`), so silhouettes stay continuous. The diffuse view
+//!   factor is evaluated at `max(n . v, 0)`.
+//!
+//! # Cost ([`bench_sg_frame`], `relight bench`)
+//! 512 x 512, a 15.4K-vertex sphere covering 60 % of the image, 1 lobe, on the shared 2-core
+//! machine under a load of 4-8: 56-62 ms wall, 37-40 ms of CPU time over both threads (the
+//! SH PRT frame of the same scene: 20 ms), i.e. about 20 ms (50 fps) on two idle cores. The
+//! per-vertex pass takes 1-2 ms (view location walks from the previous vertex's triangle,
+//! [`locate_near`]); the rasteriser's deferred pass (visibility and fragments) is about half
+//! of the frame and the prefiltered fetches about a third. 2 and 3 lobes: 52-56 and 68-74 ms
+//! of CPU time.
+
+use crate::raster::{self, Fragment, RasterOptions, Rendered};
+use crate::shade_sh;
+use glam::{Mat3, Vec3, Vec3A};
+use rayon::prelude::*;
+use relight_bake::sg::SgBake;
+use relight_scene::camera::Camera;
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_scene::scene::Environment;
+use relight_sphere::cubemap::{self, CubeFace};
+use relight_sphere::env_prefilter::{
+    default_levels, prefilter_face, PrefilterLevel, PrefilterOptions, PrefilteredEnv, SourcePyramid,
+};
+use relight_sphere::envmap::{EnvLayout, EnvMap};
+use relight_sphere::icosphere::Icosphere;
+use relight_sphere::sg::SgLobe;
+use relight_sphere::sh;
+use relight_sphere::sh_rotate::ShRotation;
+use std::time::Instant;
+
+/// Vertices per parallel work item of the per-vertex pass.
+const CHUNK: usize = 1024;
+
+/// Blend three lobes with weights `w` (summing to 1): axes summed and renormalised,
+/// sharpness and amplitude linear (module docs). If the axes cancel, the axis of the
+/// heaviest corner is kept.
+#[inline]
+pub fn blend3(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
+    let axis = l[0].axis * w[0] + l[1].axis * w[1] + l[2].axis * w[2];
+    let heaviest = if w[0] >= w[1] && w[0] >= w[2] {
+        0
+    } else if w[1] >= w[2] {
+        1
+    } else {
+        2
+    };
+    SgLobe {
+        axis: axis.try_normalize().unwrap_or(l[heaviest].axis),
+        sharpness: l[0].sharpness * w[0] + l[1].sharpness * w[1] + l[2].sharpness * w[2],
+        amplitude: l[0].amplitude * w[0] + l[1].amplitude * w[1] + l[2].amplitude * w[2],
+    }
+}
+
+/// `int exp(lambda (mu . w - 1)) dw = 2 pi (1 - exp(-2 lambda)) / lambda` in f32 (the same
+/// as `relight_sphere::sg::unit_integral`, which works in f64; beyond `lambda = 9`,
+/// `exp(-2 lambda)` is below f32 rounding and is dropped).
+#[inline]
+pub fn unit_integral_f32(lambda: f32) -> f32 {
+    const TWO_PI: f32 = 2.0 * std::f32::consts::PI;
+    if lambda > 9.0 {
+        TWO_PI / lambda
+    } else if lambda > 1e-6 {
+        -TWO_PI * (-2.0 * lambda).exp_m1() / lambda
+    } else {
+        2.0 * TWO_PI
+    }
+}
+
+/// A cube-map copy of `map` with face size `n` (a power of two), each texel the mean of a
+/// 2 x 2 grid of bilinear [`EnvMap::eval`]s: the input of the prefilter. A cube map of the
+/// same size is returned as is.
+pub fn to_cube(map: &EnvMap, n: usize) -> EnvMap {
+    if map.layout() == EnvLayout::Cube && map.width() == n {
+        return map.clone();
+    }
+    let mut texels = vec![Vec3::ZERO; 6 * n * n];
+    texels.par_chunks_mut(n).enumerate().for_each(|(fr, row)| {
+        let (face, r) = (CubeFace::from_index(fr / n), fr % n);
+        for (c, t) in row.iter_mut().enumerate() {
+            let mut acc = Vec3::ZERO;
+            for (dy, dx) in [(0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)] {
+                let st = glam::Vec2::new((c as f32 + dx) / n as f32, (r as f32 + dy) / n as f32);
+                acc += map.eval(cubemap::face_st_to_dir(face, st));
+            }
+            *t = acc * 0.25;
+        }
+    });
+    EnvMap::cube(n, texels)
+}
+
+/// Face size of the prefilter's source for `map`: its own for a power-of-two cube map, else
+/// the power of two nearest the face size of the same texel pitch (a cube's face size; a
+/// quarter of the width of a latlong or an angular probe), in `8..=512`.
+pub fn source_face_size(map: &EnvMap) -> usize {
+    let w = match map.layout() {
+        EnvLayout::Cube if map.width().is_power_of_two() => return map.width(),
+        EnvLayout::Cube => map.width(),
+        EnvLayout::LatLong | EnvLayout::Probe => map.width() / 4,
+    }
+    .max(8);
+    let up = w.next_power_of_two();
+    let n = if up - w > w - up / 2 { up / 2 } else { up };
+    n.clamp(8, 512)
+}
+
+/// Prefilters a power-of-two cube map into `levels`, one rayon job per `(level, face)`.
+///
+/// # Panics
+/// As [`SourcePyramid::new`] and [`PrefilteredEnv::from_levels`].
+pub fn prefilter_parallel(cube: &EnvMap, levels: &[PrefilterLevel]) -> PrefilteredEnv {
+    let pyr = SourcePyramid::new(cube);
+    let opts = PrefilterOptions::default();
+    let data = levels
+        .iter()
+        .map(|l| {
+            let mut v = vec![Vec3::ZERO; 6 * l.size * l.size];
+            v.par_chunks_mut(l.size * l.size)
+                .enumerate()
+                .for_each(|(f, out)| prefilter_face(&pyr, l, &opts, CubeFace::from_index(f), out));
+            v
+        })
+        .collect();
+    PrefilteredEnv::from_levels(levels.to_vec(), data)
+}
+
+/// The lighting of an SG frame: the environment's Gaussian-prefiltered chain (map frame,
+/// built once per map), its SH for the diffuse part, and the runtime rotation and scale.
+#[derive(Clone, Debug)]
+pub struct SgLighting {
+    prefiltered: PrefilteredEnv,
+    /// `ln lambda` of each level (sharpest first), for the trilinear fetch.
+    ln_lambda: Vec<f32>,
+    /// The levels' texels as 16-byte SIMD vectors (same order as the chain's).
+    texels: Vec<Vec<Vec3A>>,
+    /// SH of the map in its own frame, unscaled.
+    map_sh: Vec<Vec3>,
+    sh_order: usize,
+    /// Rotation from world to map directions.
+    pub env_from_world: Mat3,
+    /// Radiance scale of the environment.
+    pub scale: f32,
+    /// SH of the lighting in the world frame, scaled: what the diffuse transfer is dotted with.
+    world_sh: Vec<Vec3>,
+}
+
+impl SgLighting {
+    /// Prefilters `env.map` (converted to a cube map of [`source_face_size`]) into the
+    /// default chain ([`default_levels`], one level per octave of `sigma`) of base face size
+    /// `min(face_size, source)` down to 1 texel, and projects it to SH of `sh_order`
+    /// (the diffuse transfer's order).
+    ///
+    /// # Panics
+    /// If `face_size` is not a power of two or `sh_order` is outside `1..=sh::MAX_ORDER`.
+    pub fn new(env: &Environment, sh_order: usize, face_size: usize) -> SgLighting {
+        assert!(face_size.is_power_of_two(), "face size {face_size}");
+        let src = source_face_size(&env.map);
+        let cube = to_cube(&env.map, src);
+        let n = face_size.min(src);
+        let levels = default_levels(n, n.trailing_zeros() as usize + 1);
+        let pre = prefilter_parallel(&cube, &levels);
+        let map_sh = sh::project_env(&env.map, sh_order);
+        SgLighting::from_parts(pre, map_sh, sh_order, env)
+    }
+
+    /// Assembles the lighting from a prefiltered chain and the map's SH (`order^2`
+    /// coefficients, map frame), both of `env.map`, with `env`'s rotation and scale.
+    pub fn from_parts(
+        prefiltered: PrefilteredEnv,
+        map_sh: Vec<Vec3>,
+        sh_order: usize,
+        env: &Environment,
+    ) -> SgLighting {
+        assert_eq!(map_sh.len(), sh::sh_count(sh_order), "SH of the map");
+        let ln_lambda = prefiltered.levels().iter().map(|l| l.lambda.ln()).collect();
+        let texels = (0..prefiltered.levels().len())
+            .map(|k| {
+                prefiltered
+                    .level_texels(k)
+                    .iter()
+                    .map(|&t| t.into())
+                    .collect()
+            })
+            .collect();
+        let mut l = SgLighting {
+            prefiltered,
+            ln_lambda,
+            texels,
+            map_sh,
+            sh_order,
+            env_from_world: Mat3::IDENTITY,
+            scale: 1.0,
+            world_sh: vec![],
+        };
+        l.set_rotation(env);
+        l
+    }
+
+    /// Takes `env`'s rotation and scale (its map must be the one prefiltered): re-rotates the
+    /// diffuse SH only, the chain stays (a runtime rotation costs microseconds).
+    pub fn set_rotation(&mut self, env: &Environment) {
+        self.env_from_world = env.env_from_world();
+        self.scale = env.scale;
+        let mut c = ShRotation::new(self.sh_order, env.world_from_env()).apply(&self.map_sh);
+        c.iter_mut().for_each(|v| *v *= env.scale);
+        self.world_sh = c;
+    }
+
+    /// The prefiltered chain (map frame).
+    pub fn prefiltered(&self) -> &PrefilteredEnv {
+        &self.prefiltered
+    }
+
+    /// The world-frame, scaled SH of the lighting.
+    pub fn world_sh(&self) -> &[Vec3] {
+        &self.world_sh
+    }
+
+    /// [`PrefilteredEnv::sample`] with the levels' `ln lambda` precomputed (the same
+    /// trilinear fetch: bilinear in the two levels bracketing `ln lambda`, linear between).
+    /// `dir` is a unit direction in the map frame.
+    #[inline]
+    pub fn sample(&self, dir: Vec3, lambda: f32) -> Vec3 {
+        self.sample_a(dir, lambda).into()
+    }
+
+    #[inline]
+    fn sample_a(&self, dir: Vec3, lambda: f32) -> Vec3A {
+        // The face and face coordinates are shared by both levels (one projection per fetch).
+        let (face, st) = cubemap::dir_to_face_st(dir);
+        let x = lambda.max(1e-30).ln();
+        let ln = &self.ln_lambda;
+        let last = ln.len() - 1;
+        if x >= ln[0] {
+            return self.level_eval(0, face, st);
+        }
+        if x <= ln[last] {
+            return self.level_eval(last, face, st);
+        }
+        let mut k = 0;
+        while ln[k + 1] >= x {
+            k += 1;
+        }
+        let t = (ln[k] - x) / (ln[k] - ln[k + 1]);
+        self.level_eval(k, face, st) * (1.0 - t) + self.level_eval(k + 1, face, st) * t
+    }
+
+    /// Bilinear fetch in level `k` at face coordinates `st` (as `cubemap::bilinear`: texel
+    /// centres at `(i + 0.5) / n`, clamped at the face's edges).
+    #[inline]
+    fn level_eval(&self, k: usize, face: CubeFace, st: glam::Vec2) -> Vec3A {
+        let texels = &self.texels[k];
+        let n = self.prefiltered.levels()[k].size;
+        let x = (st.x * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+        let y = (st.y * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+        let c0 = (x as usize).min(n.saturating_sub(2));
+        let r0 = (y as usize).min(n.saturating_sub(2));
+        let fx = (x - c0 as f32).min(1.0);
+        let fy = (y - r0 as f32).min(1.0);
+        let (c1, r1) = ((c0 + 1).min(n - 1), (r0 + 1).min(n - 1));
+        let base = face.index() * n * n;
+        let at = |r: usize, c: usize| texels[base + r * n + c];
+        (at(r0, c0) * (1.0 - fx) + at(r0, c1) * fx) * (1.0 - fy)
+            + (at(r1, c0) * (1.0 - fx) + at(r1, c1) * fx) * fy
+    }
+
+    /// `int G(w) L(w) dw` of a lobe whose axis is in the map frame (eq. 2.7, one lobe):
+    /// `scale a unit_integral(lambda) P(mu, lambda)`.
+    #[inline]
+    pub fn integrate(&self, lobe_in_map: &SgLobe) -> Vec3 {
+        let p = self.sample_a(lobe_in_map.axis, lobe_in_map.sharpness);
+        Vec3::from(Vec3A::from(lobe_in_map.amplitude) * p)
+            * (self.scale * unit_integral_f32(lobe_in_map.sharpness))
+    }
+}
+
+/// The per-vertex state of one frame (output of [`SgRenderer::prepare`]).
+#[derive(Clone, Debug, Default)]
+pub struct SgFrame {
+    /// Lobes per vertex (direct then indirect).
+    pub lobe_count: usize,
+    /// `lobes[x * lobe_count + k]`: view-blended lobes, axes in the map frame.
+    pub lobes: Vec<SgLobe>,
+    /// Diffuse radiance per vertex (albedo and view factor applied).
+    pub diffuse: Vec<Vec3>,
+}
+
+/// Where the time of one SG frame goes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SgTimes {
+    /// Per-vertex pass: view location and blending, diffuse SH dot products.
+    pub vertex_ms: f64,
+    /// Rasterisation and per-pixel lobe blending and fetches.
+    pub pixel_ms: f64,
+}
+
+/// Renders an [`SgBake`] of a mesh (module docs).
+#[derive(Clone, Debug)]
+pub struct SgRenderer<'a> {
+    mesh: &'a TriMesh,
+    bake: &'a SgBake,
+    views: Icosphere,
+    /// Diffuse albedo of each vertex's material.
+    albedo: Vec<Vec3>,
+    /// View-factor tables of the distinct materials, and each vertex's table.
+    view_tables: Vec<[f32; VIEW_TABLE]>,
+    view_index: Vec<u32>,
+}
+
+impl<'a> SgRenderer<'a> {
+    /// A renderer of `bake`, made of `mesh`.
+    ///
+    /// # Panics
+    /// If the bake's arrays do not match the mesh or each other (a loaded bundle is checked
+    /// by its reader first).
+    pub fn new(mesh: &'a TriMesh, bake: &'a SgBake) -> SgRenderer<'a> {
+        let v = mesh.vertex_count();
+        let views = Icosphere::new(bake.view_frequency);
+        let nv = views.vertices().len();
+        for l in std::iter::once(&bake.direct).chain(bake.indirect.as_ref()) {
+            assert_eq!(l.view_count, nv, "views of the bake");
+            assert_eq!(l.lobes.len(), v * nv * l.lobe_count, "lobes of the bake");
+        }
+        assert_eq!(bake.materials.len(), v, "one material per vertex");
+        assert_eq!(bake.diffuse.vertex_count, v, "diffuse transfer per vertex");
+        assert_eq!(bake.diffuse.channels, 1, "mono diffuse transfer");
+        // Distinct materials (a blended bake may have one per vertex).
+        let mut palette: std::collections::HashMap<String, u32> = Default::default();
+        let mut view_tables = vec![];
+        let mut albedo = Vec::with_capacity(v);
+        let mut albedos = vec![];
+        let view_index = bake
+            .materials
+            .iter()
+            .map(|m| {
+                let i = *palette.entry(format!("{m:?}")).or_insert_with(|| {
+                    view_tables.push(view_table(m));
+                    albedos.push(m.diffuse_albedo());
+                    (view_tables.len() - 1) as u32
+                });
+                albedo.push(albedos[i as usize]);
+                i
+            })
+            .collect();
+        SgRenderer {
+            mesh,
+            bake,
+            views,
+            albedo,
+            view_tables,
+            view_index,
+        }
+    }
+
+    /// The view icosahedron.
+    pub fn views(&self) -> &Icosphere {
+        &self.views
+    }
+
+    /// Lobes per vertex: direct plus indirect.
+    pub fn lobe_count(&self) -> usize {
+        self.bake.direct.lobe_count + self.bake.indirect.as_ref().map_or(0, |l| l.lobe_count)
+    }
+
+    /// The lobes of vertex `x` for world view direction `v` (unit, towards the viewer),
+    /// blended over the three nearest views, world frame, into `out` (`lobe_count` entries).
+    pub fn view_lobes(&self, x: usize, v: Vec3, out: &mut [SgLobe]) {
+        let (t, b) = self.views.locate(v);
+        self.blend_views(x, t, b, out);
+    }
+
+    /// Blend the lobes of vertex `x` over the views of triangle `t` with weights `b`.
+    #[inline]
+    fn blend_views(&self, x: usize, t: usize, b: [f32; 3], out: &mut [SgLobe]) {
+        let [j0, j1, j2] = self.views.triangles()[t].map(|j| j as usize);
+        let mut o = out.iter_mut();
+        for lobes in std::iter::once(&self.bake.direct).chain(self.bake.indirect.as_ref()) {
+            let (l0, l1, l2) = (lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2));
+            for k in 0..lobes.lobe_count {
+                *o.next().expect("out holds lobe_count lobes") =
+                    blend3([&l0[k], &l1[k], &l2[k]], b);
+            }
+        }
+    }
+
+    /// The per-vertex pass for an eye at `eye` (world) under `lighting`.
+    pub fn prepare(&self, lighting: &SgLighting, eye: Vec3) -> SgFrame {
+        let n = self.lobe_count();
+        let vc = self.mesh.vertex_count();
+        let mut diffuse = vec![Vec3::ZERO; vc];
+        shade_sh::vertex_radiance(&self.bake.diffuse, None, lighting.world_sh(), &mut diffuse);
+        let mut lobes = vec![
+            SgLobe {
+                axis: Vec3::Z,
+                sharpness: 1.0,
+                amplitude: Vec3::ZERO
+            };
+            vc * n
+        ];
+        let r = lighting.env_from_world;
+        lobes
+            .par_chunks_mut(CHUNK * n.max(1))
+            .zip(diffuse.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, (lobes, diffuse))| {
+                // Neighbouring vertices (in index order) mostly see nearby views: start each
+                // view location from the previous vertex's triangle.
+                let mut hint = None;
+                for (i, d) in diffuse.iter_mut().enumerate() {
+                    let x = c * CHUNK + i;
+                    let v = (eye - self.mesh.positions[x]).normalize_or(self.mesh.normals[x]);
+                    let out = &mut lobes[i * n..(i + 1) * n];
+                    let (t, b) = locate_near(&self.views, hint, v);
+                    hint = Some(t);
+                    self.blend_views(x, t, b, out);
+                    for l in out.iter_mut() {
+                        l.axis = r * l.axis;
+                    }
+                    let cos_i = self.mesh.normals[x].dot(v).clamp(0.0, 1.0);
+                    let table = &self.view_tables[self.view_index[x] as usize];
+                    *d *= self.albedo[x] * view_factor(table, cos_i);
+                }
+            });
+        SgFrame {
+            lobe_count: n,
+            lobes,
+            diffuse,
+        }
+    }
+
+    /// Radiance of a fragment: per-pixel blend of its triangle's vertex lobes, each
+    /// integrated by `integrate` (axis in the map frame), plus the interpolated diffuse part.
+    #[inline]
+    fn shade(&self, frame: &SgFrame, f: &Fragment, integrate: impl Fn(&SgLobe) -> Vec3) -> Vec3 {
+        let n = frame.lobe_count;
+        let [a, b, c] = self.mesh.indices[f.tri as usize].map(|i| i as usize * n);
+        let mut sum = f.interpolate(self.mesh, &frame.diffuse);
+        for k in 0..n {
+            let l = &frame.lobes;
+            let lobe = blend3([&l[a + k], &l[b + k], &l[c + k]], f.bary);
+            if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
+                sum += integrate(&lobe);
+            }
+        }
+        sum
+    }
+
+    /// One frame: [`SgRenderer::prepare`], then deferred per-pixel shading with prefiltered
+    /// fetches ([`SgLighting::integrate`]).
+    pub fn render(
+        &self,
+        lighting: &SgLighting,
+        camera: &Camera,
+        background: Option<&Environment>,
+        opts: &RasterOptions,
+    ) -> (Rendered, SgTimes) {
+        let t0 = Instant::now();
+        let frame = self.prepare(lighting, Vec3::from(camera.origin));
+        let t1 = Instant::now();
+        let img = raster::render_deferred(self.mesh, camera, background, opts, |f| {
+            self.shade(&frame, f, |l| lighting.integrate(l))
+        });
+        let t2 = Instant::now();
+        let times = SgTimes {
+            vertex_ms: (t1 - t0).as_secs_f64() * 1e3,
+            pixel_ms: (t2 - t1).as_secs_f64() * 1e3,
+        };
+        (img, times)
+    }
+
+    /// The slow reference of [`SgRenderer::render`]: the same blended lobes, each integrated
+    /// numerically against every texel of `env.map` with its exact solid angle
+    /// (`relight_sphere::sg::integrate_with_env`), times `env.scale`. `O(texels)` per lobe and
+    /// sample: for tests on small images and maps. `lighting` supplies the rotation and the
+    /// diffuse SH (shared with the fast path).
+    pub fn render_reference(
+        &self,
+        lighting: &SgLighting,
+        env: &Environment,
+        camera: &Camera,
+        opts: &RasterOptions,
+    ) -> Rendered {
+        let frame = self.prepare(lighting, Vec3::from(camera.origin));
+        raster::render_deferred(self.mesh, camera, None, opts, |f| {
+            self.shade(&frame, f, |l| {
+                relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map)
+                    * env.scale
+            })
+        })
+    }
+}
+
+/// [`Icosphere::locate`] started from triangle `hint`: walk across the edge opposite the
+/// most negative barycentric until all are non-negative (a few steps for a nearby
+/// direction); the global search if there is no hint or the walk does not arrive in 8 steps.
+/// Only triangles facing `dir` count, whose cone barycentrics are meaningful.
+#[inline]
+pub fn locate_near(views: &Icosphere, hint: Option<usize>, dir: Vec3) -> (usize, [f32; 3]) {
+    if let Some(mut t) = hint {
+        for _ in 0..8 {
+            let [a, b, c] = views.triangles()[t].map(|j| views.vertices()[j as usize]);
+            if dir.dot(a + b + c) <= 0.0 {
+                break;
+            }
+            let w = views.barycentrics(t, dir);
+            let k = if w[0] <= w[1] && w[0] <= w[2] {
+                0
+            } else if w[1] <= w[2] {
+                1
+            } else {
+                2
+            };
+            if w[k] >= -1e-6 {
+                return (t, w);
+            }
+            t = views.triangle_neighbours(t)[k] as usize;
+        }
+    }
+    views.locate(dir)
+}
+
+/// Samples of the view-side diffuse factor over `cos_i` in `[0, 1]`.
+const VIEW_TABLE: usize = 33;
+
+/// The material's view-side diffuse factor (`Material::diffuse_factors`: 1 for Lambert,
+/// Blinn-Phong and the GGX conductor, the rough interface's transmittance `t(cos_i)` for GGX
+/// plastic) tabulated at `VIEW_TABLE` cosines, so a frame needs no table look-up per vertex.
+fn view_table(m: &Material) -> [f32; VIEW_TABLE] {
+    std::array::from_fn(|i| m.diffuse_factors(i as f32 / (VIEW_TABLE - 1) as f32, 1.0).0)
+}
+
+/// Linear interpolation in a [`view_table`] at `cos_i` in `[0, 1]`.
+#[inline]
+fn view_factor(table: &[f32; VIEW_TABLE], cos_i: f32) -> f32 {
+    let x = cos_i.clamp(0.0, 1.0) * (VIEW_TABLE - 1) as f32;
+    let i = (x as usize).min(VIEW_TABLE - 2);
+    let f = x - i as f32;
+    table[i] * (1.0 - f) + table[i + 1] * f
+}
+
+#[path = "shade_sg_bench.rs"]
+mod bench;
+pub use bench::{bench_sg_frame, synthetic_sphere_bake, SgFrameBench};
+
+#[cfg(test)]
+#[path = "shade_sg_tests.rs"]
+mod tests;

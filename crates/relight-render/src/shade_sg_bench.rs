@@ -1,0 +1,187 @@
+//! The SG frame benchmark of `relight bench` (a synthetic bake, so it needs no baking).
+
+use super::{SgLighting, SgRenderer};
+use crate::raster::{self, RasterOptions};
+use crate::shade_sh;
+use glam::Vec3;
+use relight_bake::sg::SgBake;
+use relight_scene::camera::Camera;
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_scene::scene::Environment;
+use relight_sphere::envmap::EnvMap;
+use relight_sphere::icosphere::Icosphere;
+use relight_sphere::sg::SgLobe;
+use relight_sphere::sh;
+use std::time::Instant;
+
+/// Result of [`bench_sg_frame`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SgFrameBench {
+    /// Mesh vertices.
+    pub vertices: usize,
+    /// Lobes per vertex and view.
+    pub lobes: usize,
+    /// Fraction of the image's pixels covered by the mesh.
+    pub coverage: f64,
+    /// Median SG frame (per-vertex pass + raster + per-pixel shading), milliseconds.
+    pub ms_per_frame: f64,
+    /// Median per-vertex pass of the SG frame, milliseconds.
+    pub vertex_ms: f64,
+    /// Mean CPU time of an SG frame summed over all threads (user + system, from
+    /// `/proc/self/stat`; `None` where that does not exist), milliseconds: what the frame
+    /// costs whatever else runs on the machine; `cpu_ms_per_frame / threads` is the wall time
+    /// of an otherwise idle machine with perfect scaling.
+    pub cpu_ms_per_frame: Option<f64>,
+    /// Mean CPU time of the SH PRT frame, all threads, milliseconds (as `cpu_ms_per_frame`).
+    pub sh_cpu_ms_per_frame: Option<f64>,
+    /// Median SH PRT frame of the same mesh and camera (per-vertex order-5 dot products +
+    /// Gouraud raster), milliseconds.
+    pub sh_ms_per_frame: f64,
+    /// Rayon threads.
+    pub threads: usize,
+}
+
+/// A synthetic SG bake of a UV sphere with `rings x 2 rings` quads (`~2 rings^2` vertices):
+/// per view, `lobes` lobes about the mirror direction of the view (sharpness 20 to 500),
+/// order-5 diffuse transfer `y_i(n)` (smooth, not physical), GGX plastic.
+pub fn synthetic_sphere_bake(rings: u32, lobes: usize) -> (TriMesh, SgBake) {
+    use relight_bake::sg::{SgFitStats, SgLobes, VIEW_FREQUENCY};
+    use relight_bake::sh::{ShTransfer, ShTransferKind};
+    let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, rings, 2 * rings);
+    let views = Icosphere::new(VIEW_FREQUENCY);
+    let nv = views.vertices().len();
+    let mut data = Vec::with_capacity(mesh.vertex_count() * nv * lobes);
+    for (x, n) in mesh.normals.iter().enumerate() {
+        for v in views.vertices() {
+            let r = (2.0 * n.dot(*v) * *n - *v).normalize_or(*n);
+            for k in 0..lobes {
+                data.push(SgLobe {
+                    axis: (r + 0.2 * k as f32 * n.any_orthonormal_vector()).normalize(),
+                    sharpness: 20.0 + 480.0 * ((x * 7 + k * 3) % 11) as f32 / 10.0,
+                    amplitude: Vec3::new(1.0, 0.8, 0.6) * (10.0 / (1 + k) as f32),
+                });
+            }
+        }
+    }
+    let order = 5;
+    let n2 = sh::sh_count(order);
+    let mut diffuse = vec![0.0; mesh.vertex_count() * n2];
+    for (x, n) in mesh.normals.iter().enumerate() {
+        sh::eval_sh(order, *n, &mut diffuse[x * n2..(x + 1) * n2]);
+    }
+    let vc = mesh.vertex_count();
+    let bake = SgBake {
+        view_frequency: VIEW_FREQUENCY,
+        direct: SgLobes {
+            lobe_count: lobes,
+            view_count: nv,
+            lobes: data,
+        },
+        indirect: None,
+        diffuse: ShTransfer {
+            order,
+            kind: ShTransferKind::Shadowed,
+            vertex_count: vc,
+            channels: 1,
+            data: diffuse,
+        },
+        materials: vec![
+            Material::GgxPlastic {
+                diffuse: Vec3::splat(0.5),
+                specular: Vec3::ONE,
+                alpha: 0.1,
+                ior: 1.49
+            };
+            vc
+        ],
+        stats: SgFitStats::default(),
+    };
+    (mesh, bake)
+}
+
+/// Times a 512 x 512 SG frame (1 sample per pixel) of a ~15K-vertex sphere filling most of
+/// the image with `lobes` lobes, under a prefiltered 6 x 128 x 128 environment, against the
+/// SH PRT frame of the same mesh and camera; medians of `runs` frames after a warm-up.
+pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
+    let (mesh, bake) = synthetic_sphere_bake(87, lobes);
+    let env = Environment::new(EnvMap::cube_from_fn(128, |d| {
+        Vec3::new(0.2, 0.3, 0.5) * (1.2 + d.y)
+            + Vec3::splat(40.0) * (d.dot(Vec3::new(0.3, 0.8, 0.5).normalize()) > 0.995) as u8 as f32
+    }));
+    let lighting = SgLighting::new(&env, bake.diffuse.order, 128);
+    let renderer = SgRenderer::new(&mesh, &bake);
+    let camera = Camera {
+        origin: [0.0, 0.4, 2.9],
+        target: [0.0, 0.0, 0.0],
+        up: [0.0, 1.0, 0.0],
+        fov_deg: 45.0,
+        width: 512,
+        height: 512,
+    };
+    let opts = RasterOptions { supersample: 1 };
+    let runs = runs.max(1);
+    let mut sg = vec![];
+    let mut vert = vec![];
+    let mut coverage = 0.0;
+    let mut cpu0 = None;
+    for i in 0..=runs {
+        if i == 1 {
+            cpu0 = process_cpu_ms();
+        }
+        let t0 = Instant::now();
+        let (r, t) = renderer.render(&lighting, &camera, None, &opts);
+        if i > 0 {
+            sg.push(t0.elapsed().as_secs_f64() * 1e3);
+            vert.push(t.vertex_ms);
+        }
+        coverage = r.coverage.iter().map(|&c| c as f64).sum::<f64>() / r.coverage.len() as f64;
+    }
+    let cpu_ms_per_frame = cpu0
+        .zip(process_cpu_ms())
+        .map(|(a, b)| (b - a) / runs as f64);
+    let albedo = vec![Vec3::splat(0.5); mesh.vertex_count()];
+    let mut shf = vec![];
+    let mut sh_cpu0 = None;
+    for i in 0..=runs {
+        if i == 1 {
+            sh_cpu0 = process_cpu_ms();
+        }
+        let t0 = Instant::now();
+        let rad = shade_sh::shade(&bake.diffuse, Some(&albedo), lighting.world_sh());
+        std::hint::black_box(raster::render_with(&mesh, &camera, &rad, None, &opts));
+        if i > 0 {
+            shf.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let sh_cpu_ms_per_frame = sh_cpu0
+        .zip(process_cpu_ms())
+        .map(|(a, b)| (b - a) / runs as f64);
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    SgFrameBench {
+        vertices: mesh.vertex_count(),
+        lobes,
+        coverage,
+        ms_per_frame: median(sg),
+        vertex_ms: median(vert),
+        cpu_ms_per_frame,
+        sh_cpu_ms_per_frame,
+        sh_ms_per_frame: median(shf),
+        threads: rayon::current_num_threads(),
+    }
+}
+
+/// User + system CPU time of this process so far, all threads, milliseconds (Linux
+/// `/proc/self/stat` fields 14 and 15, in clock ticks of 10 ms: the kernel's `USER_HZ` is 100
+/// on every Linux architecture relight builds for); `None` elsewhere.
+fn process_cpu_ms() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) is in parentheses and may hold spaces: split after it.
+    let rest = &s[s.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks * 10.0)
+}
