@@ -231,13 +231,19 @@ pub fn run(a: Args) -> Result<()> {
             100.0 * r.reference_noise
         );
     }
+    write_results(&a.out, &md, &rows)
+}
+
+/// Print the markdown table and write it as `out/results.md` with the rows as
+/// `out/results.json` (atomically).
+pub fn write_results(out: &std::path::Path, md: &str, rows: &impl serde::Serialize) -> Result<()> {
     println!("{md}");
-    relight_bundle::write_atomic(&a.out.join("results.md"), md.as_bytes())?;
+    relight_bundle::write_atomic(&out.join("results.md"), md.as_bytes())?;
     relight_bundle::write_atomic(
-        &a.out.join("results.json"),
-        serde_json::to_string_pretty(&rows)?.as_bytes(),
+        &out.join("results.json"),
+        serde_json::to_string_pretty(rows)?.as_bytes(),
     )?;
-    println!("wrote {}", a.out.join("results.md").display());
+    println!("wrote {}", out.join("results.md").display());
     Ok(())
 }
 
@@ -291,7 +297,8 @@ pub fn mask_and_reference_at_depth(
     Ok((reference, mask, noise))
 }
 
-fn mean_lum(img: &Image, mask: &[bool]) -> f64 {
+/// Mean luminance of `img` over the pixels where `mask` is set (0 for an empty mask).
+pub fn mean_lum(img: &Image, mask: &[bool]) -> f64 {
     let (s, n) = img
         .pixels
         .iter()

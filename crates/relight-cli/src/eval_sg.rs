@@ -21,7 +21,7 @@
 //! reference is the mean of two seeds, and half their difference its own noise.
 
 use crate::common::write_image;
-use crate::eval::{mask_and_reference_at_depth, stem, Args};
+use crate::eval::{mask_and_reference_at_depth, mean_lum, stem, Args};
 use crate::sg::{bake_scene, relight_sg, SgBakeOpts, SgRenderOpts};
 use anyhow::{anyhow, Context, Result};
 use glam::Vec3;
@@ -129,15 +129,7 @@ pub fn run(a: &Args) -> Result<()> {
     for ex in &experiments {
         rows.push(run_one(a, ex, &python)?);
     }
-    let md = table(&rows, a);
-    println!("{md}");
-    relight_bundle::write_atomic(&a.out.join("results.md"), md.as_bytes())?;
-    relight_bundle::write_atomic(
-        &a.out.join("results.json"),
-        serde_json::to_string_pretty(&rows)?.as_bytes(),
-    )?;
-    println!("wrote {}", a.out.join("results.md").display());
-    Ok(())
+    crate::eval::write_results(&a.out, &table(&rows, a), &rows)
 }
 
 fn run_one(a: &Args, ex: &Experiment, python: &Path) -> Result<Row> {
@@ -254,18 +246,6 @@ fn write_set(
         )?;
     }
     Ok(())
-}
-
-fn mean_lum(img: &Image, mask: &[bool]) -> f64 {
-    let (s, n) = img
-        .pixels
-        .iter()
-        .zip(mask)
-        .filter(|(_, &m)| m)
-        .fold((0.0, 0usize), |(s, n), (c, _)| {
-            (s + compare::luminance(*c) as f64, n + 1)
-        });
-    s / n.max(1) as f64
 }
 
 fn opt(x: Option<f64>, pct: bool) -> String {

@@ -58,12 +58,112 @@ fn unflat3(v: &[f32]) -> Vec<Vec3> {
     v.chunks_exact(3).map(Vec3::from_slice).collect()
 }
 
+/// The mesh tensors: positions, normals, optional uvs, indices, material ids.
+fn insert_mesh(b: &mut Bundle, m: &TriMesh) {
+    let (v, t) = (m.vertex_count(), m.triangle_count());
+    b.insert(
+        "positions",
+        Tensor::from_f32(vec![v, 3], &flat3(&m.positions)),
+    );
+    b.insert("normals", Tensor::from_f32(vec![v, 3], &flat3(&m.normals)));
+    if let Some(uv) = &m.uvs {
+        let f: Vec<f32> = uv.iter().flat_map(|p| p.to_array()).collect();
+        b.insert("uvs", Tensor::from_f32(vec![v, 2], &f));
+    }
+    let idx: Vec<u32> = m.indices.iter().flatten().copied().collect();
+    b.insert("indices", Tensor::from_u32(vec![t, 3], &idx));
+    b.insert("material_ids", Tensor::from_u32(vec![t], &m.material_ids));
+}
+
+/// Checked access to the tensors of a bundle read from `path` (named in every error).
+struct TensorReader<'a> {
+    b: &'a Bundle,
+    path: &'a Path,
+}
+
+impl<'a> TensorReader<'a> {
+    /// A required tensor of the expected shape.
+    fn shaped(&self, name: &str, shape: &[usize]) -> Result<&'a Tensor> {
+        let t = self.b.tensor(self.path, name)?;
+        if t.shape != shape {
+            bail!(
+                "{}: tensor '{name}' has shape {:?}, expected {shape:?}",
+                self.path.display(),
+                t.shape
+            );
+        }
+        Ok(t)
+    }
+
+    /// A floating-point tensor of the expected shape, every value finite.
+    fn f32s(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>> {
+        let p = self.path.display();
+        let v = self
+            .shaped(name, shape)?
+            .to_f32()
+            .with_context(|| format!("{p}: tensor '{name}' is not floating point"))?;
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            bail!("{p}: tensor '{name}' has a non-finite value at element {i}");
+        }
+        Ok(v)
+    }
+
+    /// A U32 tensor of the expected shape.
+    fn u32s(&self, name: &str, shape: &[usize]) -> Result<Vec<u32>> {
+        self.shaped(name, shape)?
+            .to_u32()
+            .with_context(|| format!("{}: tensor '{name}' is not U32", self.path.display()))
+    }
+
+    /// The mesh tensors (positions, normals, optional uvs, indices, material ids), checked
+    /// against each other and against `materials` scene materials.
+    fn mesh(&self, materials: usize) -> Result<TriMesh> {
+        let p = self.path.display();
+        let first = |name: &str| -> Result<usize> {
+            Ok(self
+                .b
+                .tensor(self.path, name)?
+                .shape
+                .first()
+                .copied()
+                .unwrap_or(0))
+        };
+        let (v, t) = (first("positions")?, first("indices")?);
+        let positions = unflat3(&self.f32s("positions", &[v, 3])?);
+        let normals = unflat3(&self.f32s("normals", &[v, 3])?);
+        let uvs = match self.b.tensors.get("uvs") {
+            Some(_) => Some(
+                self.f32s("uvs", &[v, 2])?
+                    .chunks_exact(2)
+                    .map(Vec2::from_slice)
+                    .collect(),
+            ),
+            None => None,
+        };
+        let idx = self.u32s("indices", &[t, 3])?;
+        if let Some(bad) = idx.iter().find(|&&i| i as usize >= v) {
+            bail!("{p}: triangle index {bad} out of range ({v} vertices)");
+        }
+        let material_ids = self.u32s("material_ids", &[t])?;
+        if let Some(bad) = material_ids.iter().find(|&&i| i as usize >= materials) {
+            bail!("{p}: material id {bad} out of range ({materials} materials)");
+        }
+        Ok(TriMesh {
+            positions,
+            normals,
+            uvs,
+            indices: idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            material_ids,
+        })
+    }
+}
+
 impl ShBake {
     /// Build the bundle.
     pub fn to_bundle(&self) -> Result<Bundle> {
         let mut b = Bundle::new();
         let m = &self.mesh;
-        let (v, t) = (m.vertex_count(), m.triangle_count());
+        let v = m.vertex_count();
         b.metadata.insert("method".into(), "sh".into());
         b.metadata
             .insert("relight_version".into(), env!("CARGO_PKG_VERSION").into());
@@ -73,18 +173,7 @@ impl ShBake {
             .insert("scene".into(), serde_json::to_string(&self.scene)?);
         b.metadata
             .insert("materials".into(), serde_json::to_string(&self.materials)?);
-        b.insert(
-            "positions",
-            Tensor::from_f32(vec![v, 3], &flat3(&m.positions)),
-        );
-        b.insert("normals", Tensor::from_f32(vec![v, 3], &flat3(&m.normals)));
-        if let Some(uv) = &m.uvs {
-            let f: Vec<f32> = uv.iter().flat_map(|p| p.to_array()).collect();
-            b.insert("uvs", Tensor::from_f32(vec![v, 2], &f));
-        }
-        let idx: Vec<u32> = m.indices.iter().flatten().copied().collect();
-        b.insert("indices", Tensor::from_u32(vec![t, 3], &idx));
-        b.insert("material_ids", Tensor::from_u32(vec![t], &m.material_ids));
+        insert_mesh(&mut b, m);
         b.insert("albedo", Tensor::from_f32(vec![v, 3], &flat3(&self.albedo)));
         let tr = &self.transfer;
         let shape = vec![tr.vertex_count, tr.coeff_count(), tr.channels];
@@ -113,71 +202,10 @@ impl ShBake {
             serde_json::from_str(b.meta(path, "scene")?).with_context(|| ctx("scene"))?;
         let materials: Vec<Material> =
             serde_json::from_str(b.meta(path, "materials")?).with_context(|| ctx("materials"))?;
-        // A required tensor of the expected shape.
-        let shaped = |name: &str, shape: &[usize]| -> Result<&Tensor> {
-            let t = b.tensor(path, name)?;
-            if t.shape != shape {
-                bail!(
-                    "{}: tensor '{name}' has shape {:?}, expected {:?}",
-                    path.display(),
-                    t.shape,
-                    shape
-                );
-            }
-            Ok(t)
-        };
-        let f32s = |name: &str, shape: &[usize]| -> Result<Vec<f32>> {
-            shaped(name, shape)?.to_f32().with_context(|| {
-                format!("{}: tensor '{name}' is not floating point", path.display())
-            })
-        };
-        let u32s = |name: &str, shape: &[usize]| -> Result<Vec<u32>> {
-            shaped(name, shape)?
-                .to_u32()
-                .with_context(|| format!("{}: tensor '{name}' is not U32", path.display()))
-        };
-        let v = b
-            .tensor(path, "positions")?
-            .shape
-            .first()
-            .copied()
-            .unwrap_or(0);
-        let t = b
-            .tensor(path, "indices")?
-            .shape
-            .first()
-            .copied()
-            .unwrap_or(0);
-        let positions = unflat3(&f32s("positions", &[v, 3])?);
-        let normals = unflat3(&f32s("normals", &[v, 3])?);
-        let uvs = match b.tensors.get("uvs") {
-            Some(_) => Some(
-                f32s("uvs", &[v, 2])?
-                    .chunks_exact(2)
-                    .map(Vec2::from_slice)
-                    .collect(),
-            ),
-            None => None,
-        };
-        let idx = u32s("indices", &[t, 3])?;
-        if let Some(bad) = idx.iter().find(|&&i| i as usize >= v) {
-            bail!(
-                "{}: triangle index {bad} out of range ({v} vertices)",
-                path.display()
-            );
-        }
-        let material_ids = u32s("material_ids", &[t])?;
-        if let Some(bad) = material_ids
-            .iter()
-            .find(|&&i| i as usize >= materials.len())
-        {
-            bail!(
-                "{}: material id {bad} out of range ({} materials)",
-                path.display(),
-                materials.len()
-            );
-        }
-        let albedo = unflat3(&f32s("albedo", &[v, 3])?);
+        let r = TensorReader { b: &b, path };
+        let mesh = r.mesh(materials.len())?;
+        let v = mesh.vertex_count();
+        let albedo = unflat3(&r.f32s("albedo", &[v, 3])?);
         let kind = match settings.transfer.as_str() {
             "unshadowed" => ShTransferKind::Unshadowed,
             "shadowed" => ShTransferKind::Shadowed,
@@ -187,7 +215,7 @@ impl ShBake {
             k => bail!("{}: unknown transfer kind '{k}'", path.display()),
         };
         let n2 = relight_sphere::sh::sh_count(settings.order);
-        let data = f32s("transfer", &[v, n2, kind.channels()])?;
+        let data = r.f32s("transfer", &[v, n2, kind.channels()])?;
         let transfer = ShTransfer {
             order: settings.order,
             kind,
@@ -198,13 +226,6 @@ impl ShBake {
         transfer
             .validate()
             .map_err(|e| anyhow::anyhow!("{}: transfer: {e}", path.display()))?;
-        let mesh = TriMesh {
-            positions,
-            normals,
-            uvs,
-            indices: idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-            material_ids,
-        };
         Ok(ShBake {
             scene,
             mesh,
@@ -367,7 +388,7 @@ impl SgBundle {
     pub fn to_bundle(&self) -> Result<Bundle> {
         let mut b = Bundle::new();
         let m = &self.mesh;
-        let (v, t) = (m.vertex_count(), m.triangle_count());
+        let v = m.vertex_count();
         let meta = |b: &mut Bundle, k: &str, s: String| b.metadata.insert(k.into(), s);
         meta(&mut b, "method", "sg".into());
         meta(&mut b, "relight_version", env!("CARGO_PKG_VERSION").into());
@@ -395,18 +416,7 @@ impl SgBundle {
             ids.push(id);
         }
         meta(&mut b, "sg_materials", serde_json::to_string(&palette)?);
-        b.insert(
-            "positions",
-            Tensor::from_f32(vec![v, 3], &flat3(&m.positions)),
-        );
-        b.insert("normals", Tensor::from_f32(vec![v, 3], &flat3(&m.normals)));
-        if let Some(uv) = &m.uvs {
-            let f: Vec<f32> = uv.iter().flat_map(|p| p.to_array()).collect();
-            b.insert("uvs", Tensor::from_f32(vec![v, 2], &f));
-        }
-        let idx: Vec<u32> = m.indices.iter().flatten().copied().collect();
-        b.insert("indices", Tensor::from_u32(vec![t, 3], &idx));
-        b.insert("material_ids", Tensor::from_u32(vec![t], &m.material_ids));
+        insert_mesh(&mut b, m);
         b.insert("sg_vertex_material", Tensor::from_u32(vec![v], &ids));
         let f16 = self.settings.f16;
         let float = |shape: Vec<usize>, data: &[f32]| {
@@ -458,59 +468,13 @@ impl SgBundle {
             m.validate()
                 .map_err(|e| anyhow::anyhow!("{p}: material {m:?}: {e}"))?;
         }
-        let shaped = |name: &str, shape: &[usize]| -> Result<&Tensor> {
-            let t = b.tensor(path, name)?;
-            if t.shape != shape {
-                bail!(
-                    "{p}: tensor '{name}' has shape {:?}, expected {shape:?}",
-                    t.shape
-                );
-            }
-            Ok(t)
-        };
-        let f32s = |name: &str, shape: &[usize]| -> Result<Vec<f32>> {
-            let v = shaped(name, shape)?
-                .to_f32()
-                .with_context(|| format!("{p}: tensor '{name}' is not floating point"))?;
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                bail!("{p}: tensor '{name}' has a non-finite value at element {i}");
-            }
-            Ok(v)
-        };
-        let u32s = |name: &str, shape: &[usize]| -> Result<Vec<u32>> {
-            shaped(name, shape)?
-                .to_u32()
-                .with_context(|| format!("{p}: tensor '{name}' is not U32"))
-        };
-        let first = |name: &str| -> Result<usize> {
-            Ok(b.tensor(path, name)?.shape.first().copied().unwrap_or(0))
-        };
-        let (v, t) = (first("positions")?, first("indices")?);
-        let positions = unflat3(&f32s("positions", &[v, 3])?);
-        let normals = unflat3(&f32s("normals", &[v, 3])?);
-        let uvs = match b.tensors.get("uvs") {
-            Some(_) => Some(
-                f32s("uvs", &[v, 2])?
-                    .chunks_exact(2)
-                    .map(Vec2::from_slice)
-                    .collect(),
-            ),
-            None => None,
-        };
-        let idx = u32s("indices", &[t, 3])?;
-        if let Some(bad) = idx.iter().find(|&&i| i as usize >= v) {
-            bail!("{p}: triangle index {bad} out of range ({v} vertices)");
-        }
-        let material_ids = u32s("material_ids", &[t])?;
-        if let Some(bad) = material_ids
-            .iter()
-            .find(|&&i| i as usize >= materials.len())
-        {
-            bail!(
-                "{p}: material id {bad} out of range ({} materials)",
-                materials.len()
-            );
-        }
+        let r = TensorReader { b, path };
+        let mesh = r.mesh(materials.len())?;
+        let v = mesh.vertex_count();
+        let (f32s, u32s) = (
+            |n: &str, sh: &[usize]| r.f32s(n, sh),
+            |n: &str, sh: &[usize]| r.u32s(n, sh),
+        );
         let vertex_materials = u32s("sg_vertex_material", &[v])?
             .iter()
             .map(|&i| {
@@ -579,13 +543,6 @@ impl SgBundle {
         diffuse
             .validate()
             .map_err(|e| anyhow::anyhow!("{p}: diffuse transfer: {e}"))?;
-        let mesh = TriMesh {
-            positions,
-            normals,
-            uvs,
-            indices: idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-            material_ids,
-        };
         let bake = SgBake {
             view_frequency: f,
             direct,

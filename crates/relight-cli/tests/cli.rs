@@ -2,25 +2,8 @@
 //! form, and bad input (clear error naming the file, non-zero exit, no partial output).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn relight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args(args)
-        .output()
-        .expect("run relight")
-}
-
-fn tmpdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).to_string()
-}
+mod common;
+use common::{assert_clean_failure, relight, stderr, tmpdir};
 
 /// A white-furnace scene: one sphere of albedo 0.5 under constant radiance 2 (so every visible
 /// sphere pixel has radiance 0.5 * 2 = 1 exactly: the sphere is convex, nothing shadows it).
@@ -80,7 +63,7 @@ fn help_lists_every_subcommand() {
 
 #[test]
 fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
-    let d = tmpdir("furnace");
+    let d = tmpdir("cli", "furnace");
     let scene = furnace_scene(&d);
     let bundle = d.join("f.relight");
     for transfer in ["unshadowed", "shadowed", "interreflected"] {
@@ -140,7 +123,7 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
 fn rotating_the_environment_does_not_rebake_and_is_consistent() {
     // Rotating a constant environment changes nothing; the render must accept --rotate-env
     // (negative too) on an existing bundle.
-    let d = tmpdir("rotate");
+    let d = tmpdir("cli", "rotate");
     let scene = furnace_scene(&d);
     let bundle = d.join("r.relight");
     bake_quick(&scene, &bundle);
@@ -181,24 +164,9 @@ fn rotating_the_environment_does_not_rebake_and_is_consistent() {
     assert!(d.join("h.png").is_file());
 }
 
-fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
-    assert!(!o.status.success(), "expected failure");
-    let e = stderr(o);
-    assert!(
-        e.contains(must_name),
-        "error does not name {must_name}: {e}"
-    );
-    assert!(!e.contains("panicked"), "panic instead of an error: {e}");
-    assert!(
-        !out.exists(),
-        "partial output {} left behind",
-        out.display()
-    );
-}
-
 #[test]
 fn corrupt_or_truncated_bundle_is_refused_without_output() {
-    let d = tmpdir("badbundle");
+    let d = tmpdir("cli", "badbundle");
     let scene = furnace_scene(&d);
     let bundle = d.join("b.relight");
     bake_quick(&scene, &bundle);
@@ -227,7 +195,7 @@ fn corrupt_or_truncated_bundle_is_refused_without_output() {
 
 #[test]
 fn bad_scene_files_are_reported_with_their_name() {
-    let d = tmpdir("badscene");
+    let d = tmpdir("cli", "badscene");
     let out = d.join("out.relight");
     // Missing file.
     let o = relight(&[
@@ -273,7 +241,7 @@ fn bad_scene_files_are_reported_with_their_name() {
 
 #[test]
 fn bad_environment_for_render_is_refused_without_output() {
-    let d = tmpdir("badenv");
+    let d = tmpdir("cli", "badenv");
     let scene = furnace_scene(&d);
     let bundle = d.join("e.relight");
     bake_quick(&scene, &bundle);
@@ -326,7 +294,7 @@ fn bad_environment_for_render_is_refused_without_output() {
 
 #[test]
 fn compare_refuses_images_of_different_sizes() {
-    let d = tmpdir("cmp");
+    let d = tmpdir("cli", "cmp");
     let a = d.join("a.exr");
     let b = d.join("b.exr");
     relight_scene::io::image::write_exr(&a, 4, 4, &[glam::Vec3::ONE; 16]).unwrap();

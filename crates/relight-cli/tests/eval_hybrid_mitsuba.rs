@@ -10,16 +10,12 @@
 //!   double-counts the lights' energy in its SH part and uses point lights), as the thesis'
 //!   own Table 5.1 found its hybrid worse than SH-only on 4 of 5 probes.
 
+mod common;
 use std::process::Command;
 
 #[test]
 fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
-    if relight_scene::testdata::shared_dir().is_none() {
-        eprintln!("SKIP: ../shared not present");
-        return;
-    }
-    if let Err(e) = relight_render::mitsuba::mitsuba_python() {
-        eprintln!("SKIP: Mitsuba 3 not available: {e}");
+    if !common::can_evaluate() {
         return;
     }
     let out = std::env::temp_dir().join(format!("relight-eval-hybrid-{}", std::process::id()));

@@ -2,29 +2,9 @@
 //! as f32 and f16, and bad input. The tests that bake need `relight_bake::sg::bake`.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn relight(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args(args)
-        .output()
-        .expect("run relight")
-}
-
-fn tmpdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relight-sg-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).to_string()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).to_string()
-}
+mod common;
+use common::{assert_clean_failure, relight, stderr, stdout, tmpdir};
+use std::process::Output;
 
 /// A small glossy sphere under a constant environment of radiance 1: a convex object sees
 /// only the environment, so every pixel's radiance is the material's directional albedo,
@@ -118,21 +98,6 @@ fn f16_to_f32(h: u16) -> f32 {
     }
 }
 
-fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
-    assert!(!o.status.success(), "expected failure");
-    let e = stderr(o);
-    assert!(
-        e.contains(must_name),
-        "error does not name {must_name}: {e}"
-    );
-    assert!(!e.contains("panicked"), "panic instead of an error: {e}");
-    assert!(
-        !out.exists(),
-        "partial output {} left behind",
-        out.display()
-    );
-}
-
 #[test]
 fn help_lists_every_sg_setting_with_its_default() {
     let o = relight(&["bake", "--help"]);
@@ -163,7 +128,7 @@ fn help_lists_every_sg_setting_with_its_default() {
 
 #[test]
 fn bad_sg_settings_and_bundles_are_refused_before_any_work() {
-    let d = tmpdir("bad");
+    let d = tmpdir("sg", "bad");
     let sc = scene(&d);
     let out = d.join("never.relight");
     let o = bake_sg(&sc, &out, &["--direct-lobes", "0"]);
@@ -209,7 +174,7 @@ fn bad_sg_settings_and_bundles_are_refused_before_any_work() {
 /// Needs the SG bake.
 #[test]
 fn sg_bake_render_and_info() {
-    let d = tmpdir("render");
+    let d = tmpdir("sg", "render");
     let sc = scene(&d);
     let bundle = d.join("g.relight");
     let o = bake_sg(&sc, &bundle, &[]);
@@ -254,7 +219,7 @@ fn sg_bake_render_and_info() {
 /// Needs the SG bake.
 #[test]
 fn f16_sg_bundle_matches_the_f32_one_within_half_precision() {
-    let d = tmpdir("f16");
+    let d = tmpdir("sg", "f16");
     let sc = scene(&d);
     let (a, b) = (d.join("a.relight"), d.join("b.relight"));
     for (p, extra) in [(&a, &[][..]), (&b, &["--f16"][..])] {
@@ -305,7 +270,7 @@ fn f16_sg_bundle_matches_the_f32_one_within_half_precision() {
 /// Needs the SG bake.
 #[test]
 fn corrupt_sg_bundle_is_refused_without_output() {
-    let d = tmpdir("corrupt");
+    let d = tmpdir("sg", "corrupt");
     let sc = scene(&d);
     let bundle = d.join("c.relight");
     let o = bake_sg(&sc, &bundle, &["--indirect-lobes", "0"]);
@@ -333,7 +298,7 @@ fn corrupt_sg_bundle_is_refused_without_output() {
 /// Needs the SG bake.
 #[test]
 fn blended_material_bake_records_per_vertex_materials() {
-    let d = tmpdir("blend");
+    let d = tmpdir("sg", "blend");
     let sc = scene(&d);
     let bundle = d.join("b.relight");
     let to = r#"{"type": "ggx_plastic", "diffuse": [0.1, 0.6, 0.1], "specular": [1, 1, 1], "alpha": 0.05, "ior": 1.5}"#;

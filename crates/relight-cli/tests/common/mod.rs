@@ -1,0 +1,62 @@
+//! Helpers shared by the end-to-end tests of the `relight` binary.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Run the `relight` binary with `args`.
+pub fn relight(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relight"))
+        .args(args)
+        .output()
+        .expect("run relight")
+}
+
+/// A fresh, empty temporary folder named after the test file's `prefix` and `tag`.
+pub fn tmpdir(prefix: &str, tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("relight-{prefix}-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The standard error of a run, as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+/// The standard output of a run, as text.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).to_string()
+}
+
+/// Whether Mitsuba-backed evaluations can run here (`../shared` and Mitsuba 3 present); prints
+/// the reason for skipping otherwise.
+pub fn can_evaluate() -> bool {
+    if relight_scene::testdata::shared_dir().is_none() {
+        eprintln!("SKIP: ../shared not present");
+        return false;
+    }
+    if let Err(e) = relight_render::mitsuba::mitsuba_python() {
+        eprintln!("SKIP: Mitsuba 3 not available: {e}");
+        return false;
+    }
+    true
+}
+
+/// `o` failed cleanly: non-zero exit, an error naming `must_name`, no panic, and no (partial)
+/// output at `out`.
+pub fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
+    assert!(!o.status.success(), "expected failure");
+    let e = stderr(o);
+    assert!(
+        e.contains(must_name),
+        "error does not name {must_name}: {e}"
+    );
+    assert!(!e.contains("panicked"), "panic instead of an error: {e}");
+    assert!(
+        !out.exists(),
+        "partial output {} left behind",
+        out.display()
+    );
+}
