@@ -171,7 +171,7 @@ pub fn run(a: Args) -> Result<()> {
         1.0 / r.ratio_to_bandwidth_bound
     );
 
-    // 4. Hybrid method (issue 3): decomposition per frame, hybrid frame with 8 lights.
+    // 4. Hybrid method (issue 3): decomposition per frame, hybrid frames with 8 and 16 lights.
     bench_hybrid(a.quick);
     // 5. Gaussian-prefiltered environment (issue 4 building block).
     bench_prefilter();
@@ -213,7 +213,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Decomposition of a 6 x 64 x 64 cube map (median of 9), and a 512 x 512 hybrid frame with 8
-/// lights on a ~100K-triangle scene (best of 3), area and point lights, 2048 and 1024 maps.
+/// lights on a ~100K-triangle scene (best of 3), area and point lights, 2048 and 1024 maps, and
+/// with 16 (the render default) area lights and 2048 maps.
 fn bench_hybrid(quick: bool) {
     use relight_render::hybrid::{
         build_shadow_maps, render_hybrid_with_maps, HybridLight, ShadowSettings,
@@ -242,16 +243,18 @@ fn bench_hybrid(quick: bool) {
         width: 512,
         height: 512,
     };
-    let lights: Vec<HybridLight> = (0..8)
-        .map(|i| {
-            let (phi, el) = (i as f32 * 2.4, 0.3 + 0.15 * i as f32);
-            HybridLight {
-                dir: glam::Vec3::new(el.cos() * phi.cos(), el.sin(), el.cos() * phi.sin()),
-                power: glam::Vec3::ONE,
-                cap_radius: (2.0 + 0.5 * i as f32).to_radians(),
-            }
-        })
-        .collect();
+    let lights_n = |n: usize| -> Vec<HybridLight> {
+        (0..n)
+            .map(|i| {
+                let (phi, el) = (i as f32 * 2.4, 0.3 + 0.15 * i as f32);
+                HybridLight {
+                    dir: glam::Vec3::new(el.cos() * phi.cos(), el.sin(), el.cos() * phi.sin()),
+                    power: glam::Vec3::ONE,
+                    cap_radius: (2.0 + 0.5 * (i % 8) as f32).to_radians(),
+                }
+            })
+            .collect()
+    };
     let t0 = Instant::now();
     let opts = relight_render::raster::RasterOptions { supersample: 1 };
     std::hint::black_box(relight_render::raster::render_with(
@@ -259,12 +262,19 @@ fn bench_hybrid(quick: bool) {
     ));
     let prt_ms = t0.elapsed().as_secs_f64() * 1e3;
     println!(
-        "\n## Hybrid frame: 512 x 512, {} triangles, 8 lights (best of {})",
+        "\n## Hybrid frame: 512 x 512, {} triangles, 8 and 16 lights (16 = the render default; best of {})",
         mesh.triangle_count(),
         if quick { 1 } else { 3 }
     );
-    println!("| shadow maps | lights | 8 shadow maps (ms) | shading (ms) | frame (ms) | PRT-only frame (ms) |\n|---|---|---|---|---|---|");
-    for (map_size, area_light) in [(2048, true), (2048, false), (1024, true), (1024, false)] {
+    println!("| lights | shadow maps | light model | shadow maps (ms) | shading (ms) | frame (ms) | PRT-only frame (ms) |\n|---|---|---|---|---|---|---|");
+    for (count, map_size, area_light) in [
+        (8, 2048, true),
+        (8, 2048, false),
+        (8, 1024, true),
+        (8, 1024, false),
+        (16, 2048, true),
+    ] {
+        let lights = lights_n(count);
         let s = ShadowSettings {
             map_size,
             area_light,
@@ -285,7 +295,7 @@ fn bench_hybrid(quick: bool) {
             }
         }
         println!(
-            "| {map_size} | {} | {:.0} | {:.0} | {:.0} | {prt_ms:.0} |",
+            "| {count} | {map_size} | {} | {:.0} | {:.0} | {:.0} | {prt_ms:.0} |",
             if area_light {
                 "area (PCSS)"
             } else {

@@ -97,6 +97,10 @@ pub struct SgBake {
 }
 
 /// Settings of the fit (thesis section 2.2.2, eq. 2.2-2.6).
+///
+/// The three weights are relative to each (vertex, view)'s data energy `sum dA |T|^2` (the
+/// solver multiplies them by it, [`fit`] docs), so a dim vertex is not all prior and a bright
+/// one not all data; 0 disables a term.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SgFitSettings {
     /// Levenberg-Marquardt iterations per (vertex, view) refinement.
