@@ -64,7 +64,8 @@ pub struct SgBakeOpts {
     /// Weight of the spatial arrangement term across processed neighbours (eq. 2.6).
     #[arg(long, default_value_t = SgFitSettings::default().spatial_weight)]
     pub spatial_weight: f64,
-    /// Relaxation sweeps after the flood fill.
+    /// Relaxation sweeps after the flood fill (the paper's future work; each sweep re-fits
+    /// the vertices on flipped edges with priors from all their neighbours).
     #[arg(long, default_value_t = SgFitSettings::default().relax_sweeps)]
     pub relax_sweeps: usize,
     /// Independent flood-fill regions (units of parallel work); 0 = automatic.

@@ -15,7 +15,7 @@ pub const MAX_CUBE_RES: usize = 256;
 pub const MAX_DEPTH: u32 = 64;
 
 impl Default for SgFitSettings {
-    /// 30 Levenberg-Marquardt iterations, alignment weights 0.01, one relaxation sweep,
+    /// 30 Levenberg-Marquardt iterations, alignment weights 0.01, no relaxation sweep,
     /// automatic regions.
     fn default() -> Self {
         SgFitSettings {
@@ -23,7 +23,7 @@ impl Default for SgFitSettings {
             mean_weight: 0.01,
             width_weight: 0.01,
             spatial_weight: 0.01,
-            relax_sweeps: 1,
+            relax_sweeps: 0,
             regions: 0,
             energy: true,
         }
