@@ -21,25 +21,13 @@ use std::collections::HashMap;
 /// # Errors
 /// [`BakeError::Scene`] naming the first problem found.
 pub fn check_mesh(mesh: &TriMesh, materials: &[Material]) -> Result<(), BakeError> {
+    check_mesh_geometry(mesh)?;
     let err = |m: String| Err(BakeError::Scene(m));
-    if mesh.normals.len() != mesh.positions.len() {
-        return err(format!(
-            "{} normals for {} vertices",
-            mesh.normals.len(),
-            mesh.positions.len()
-        ));
-    }
     if mesh.material_ids.len() != mesh.indices.len() {
         return err(format!(
             "{} material ids for {} triangles",
             mesh.material_ids.len(),
             mesh.indices.len()
-        ));
-    }
-    let nv = mesh.positions.len() as u32;
-    if let Some(t) = mesh.indices.iter().position(|t| t.iter().any(|&i| i >= nv)) {
-        return err(format!(
-            "triangle {t} has a vertex index out of range (>= {nv})"
         ));
     }
     if let Some(t) = mesh
@@ -51,6 +39,29 @@ pub fn check_mesh(mesh: &TriMesh, materials: &[Material]) -> Result<(), BakeErro
             "triangle {t} uses material {} but only {} exist",
             mesh.material_ids[t],
             materials.len()
+        ));
+    }
+    Ok(())
+}
+
+/// The geometric half of [`check_mesh`]: one finite normal per vertex, finite positions,
+/// vertex indices in range (what a bake with per-vertex materials needs).
+///
+/// # Errors
+/// [`BakeError::Scene`] naming the first problem found.
+pub fn check_mesh_geometry(mesh: &TriMesh) -> Result<(), BakeError> {
+    let err = |m: String| Err(BakeError::Scene(m));
+    if mesh.normals.len() != mesh.positions.len() {
+        return err(format!(
+            "{} normals for {} vertices",
+            mesh.normals.len(),
+            mesh.positions.len()
+        ));
+    }
+    let nv = mesh.positions.len() as u32;
+    if let Some(t) = mesh.indices.iter().position(|t| t.iter().any(|&i| i >= nv)) {
+        return err(format!(
+            "triangle {t} has a vertex index out of range (>= {nv})"
         ));
     }
     if let Some(v) = mesh.positions.iter().position(|p| !p.is_finite()) {

@@ -27,7 +27,7 @@ mod kernel;
 mod tests;
 
 use super::SgBakeSettings;
-use crate::transport::{surface_ray, vertex_geometric_normals};
+use crate::transport::{check_mesh_geometry, surface_ray, vertex_geometric_normals};
 use crate::BakeError;
 use glam::Vec3;
 use kernel::GlossyKernel;
@@ -491,32 +491,6 @@ impl<'a> TransportContext<'a> {
         let point = self.mesh.point(tri, hit.u, hit.v);
         Some(surface_ray(point, ng, next))
     }
-}
-
-/// What [`TransportContext`] needs of a mesh (the material-id checks of
-/// [`crate::transport::check_mesh`] do not apply: materials are per vertex here).
-fn check_mesh_geometry(mesh: &TriMesh) -> Result<(), BakeError> {
-    let err = |m: String| Err(BakeError::Scene(m));
-    if mesh.normals.len() != mesh.positions.len() {
-        return err(format!(
-            "{} normals for {} vertices",
-            mesh.normals.len(),
-            mesh.positions.len()
-        ));
-    }
-    let nv = mesh.positions.len() as u32;
-    if let Some(t) = mesh.indices.iter().position(|t| t.iter().any(|&i| i >= nv)) {
-        return err(format!(
-            "triangle {t} has a vertex index out of range (>= {nv})"
-        ));
-    }
-    if let Some(v) = mesh.positions.iter().position(|p| !p.is_finite()) {
-        return err(format!("vertex {v} has a non-finite position"));
-    }
-    if let Some(v) = mesh.normals.iter().position(|n| !n.is_finite()) {
-        return err(format!("vertex {v} has a non-finite normal"));
-    }
-    Ok(())
 }
 
 impl TransportSource for TransportContext<'_> {
