@@ -259,6 +259,20 @@ pub fn mask_and_reference(
     mask_and_reference_at_depth(python, scene, dir, spp, 2)
 }
 
+/// The pixels of `scene`'s camera fully covered by geometry (4 x 4 supersampled coverage,
+/// like Mitsuba's box filter): where methods are compared.
+pub fn coverage_mask(scene: &relight_scene::scene::Scene) -> Vec<bool> {
+    let ones = vec![glam::Vec3::ONE; scene.mesh.vertex_count()];
+    raster::render_with(
+        &scene.mesh,
+        &scene.camera,
+        &ones,
+        None,
+        &RasterOptions { supersample: 4 },
+    )
+    .full_coverage_mask()
+}
+
 /// [`mask_and_reference`] with Mitsuba's `max_depth` (2 = direct only, -1 = unlimited).
 pub fn mask_and_reference_at_depth(
     python: &std::path::Path,
@@ -284,15 +298,7 @@ pub fn mask_and_reference_at_depth(
             .map(|(x, y)| (*x + *y) * 0.5)
             .collect(),
     };
-    let ones = vec![glam::Vec3::ONE; scene.mesh.vertex_count()];
-    let cover = raster::render_with(
-        &scene.mesh,
-        &scene.camera,
-        &ones,
-        None,
-        &RasterOptions { supersample: 4 },
-    );
-    let mask = cover.full_coverage_mask();
+    let mask = coverage_mask(scene);
     let noise = compare::metrics(&imgs[0], &imgs[1], Some(&mask)).rel_rmse / 2.0;
     Ok((reference, mask, noise))
 }

@@ -31,7 +31,6 @@ use anyhow::{anyhow, bail, Context, Result};
 use relight_bake::sh::{ShBakeSettings, ShTransfer, ShTransferKind};
 use relight_render::compare::{self, Metrics};
 use relight_render::mitsuba;
-use relight_render::raster::{self, RasterOptions};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
 use relight_scene::scene_file::{EnvDesc, SceneDesc};
@@ -348,15 +347,7 @@ fn reference_seeds(
         eprintln!("eval: {}: {report}", dir.display());
         imgs
     };
-    let ones = vec![glam::Vec3::ONE; scene.mesh.vertex_count()];
-    let cover = raster::render_with(
-        &scene.mesh,
-        &scene.camera,
-        &ones,
-        None,
-        &RasterOptions { supersample: 4 },
-    );
-    Ok((imgs, cover.full_coverage_mask()))
+    Ok((imgs, crate::eval::coverage_mask(scene)))
 }
 
 /// Every file of a folder (not recursive) by name; empty when it does not exist.

@@ -292,11 +292,7 @@ fn for_each_row(
     mut row: impl FnMut(f64, &[usize], &[f64]),
 ) {
     let n = lobes.len();
-    let ln_eps = if opts.zero_epsilon > 0.0 {
-        opts.zero_epsilon.ln()
-    } else {
-        f64::NEG_INFINITY
-    };
+    let ln_eps = ln_epsilon(opts);
     let (mut g, mut e, mut lam) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (mut idx, mut val) = (vec![0usize; 4 * n], vec![0.0; 4 * n]);
     for (k, l) in lobes.iter().enumerate() {

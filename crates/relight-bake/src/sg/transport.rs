@@ -355,16 +355,18 @@ impl<'a> TransportContext<'a> {
     /// horizons, with their directions in the shading frame.
     fn visible_texels(&self, x: usize, frame: &Frame) -> Vec<(u32, Vec3)> {
         let (p, ng, n) = (self.mesh.positions[x], self.ng[x], frame.n);
-        let mut texels = Vec::new();
-        let mut rays = Vec::new();
-        for (i, &w) in self.direct.dirs.iter().enumerate() {
-            if w.dot(n) > 0.0 && w.dot(ng) > 0.0 {
-                texels.push(i as u32);
-                rays.push(surface_ray(p, ng, w));
-            }
-        }
-        let mut occluded = vec![false; rays.len()];
+        let texels: Vec<u32> = (0..self.direct.dirs.len() as u32)
+            .filter(|&i| {
+                let w = self.direct.dirs[i as usize];
+                w.dot(n) > 0.0 && w.dot(ng) > 0.0
+            })
+            .collect();
+        let mut occluded = vec![false; texels.len()];
         if self.settings.visibility {
+            let rays: Vec<_> = texels
+                .iter()
+                .map(|&i| surface_ray(p, ng, self.direct.dirs[i as usize]))
+                .collect();
             self.caster.occluded_many(&rays, &mut occluded);
         }
         texels
