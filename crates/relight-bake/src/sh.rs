@@ -71,10 +71,15 @@ use relight_scene::accel::{Ray, RayCaster};
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_sphere::sh::{clamped_cosine_zonal, eval_sh, sh_count, MAX_ORDER};
+use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
+use std::ops::Range;
 
-/// Which diffuse transfer to bake (Sloan et al. 2002, sec. 5). A closed set.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which diffuse transfer to bake (Sloan et al. 2002, sec. 5). A closed set; the number of
+/// interreflection bounces is [`ShBakeSettings::bounces`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
 pub enum ShTransferKind {
     /// Cosine only, no visibility (closed form, exact). Single channel, albedo excluded.
     Unshadowed,
@@ -82,10 +87,7 @@ pub enum ShTransferKind {
     Shadowed,
     /// Shadowed transfer plus `bounces` diffuse interreflections (Neumann series). RGB,
     /// albedo included (colour bleeding from per-vertex albedo).
-    Interreflected {
-        /// Number of indirect bounces after the direct one (0 = shadowed times albedo).
-        bounces: u32,
-    },
+    Interreflected,
 }
 
 impl ShTransferKind {
@@ -93,47 +95,76 @@ impl ShTransferKind {
     pub fn channels(&self) -> usize {
         match self {
             ShTransferKind::Unshadowed | ShTransferKind::Shadowed => 1,
-            ShTransferKind::Interreflected { .. } => 3,
+            ShTransferKind::Interreflected => 3,
         }
     }
 
-    /// Number of passes over all vertices: 0 for the closed form, 1 + bounces otherwise.
-    fn ray_passes(&self) -> u64 {
-        match *self {
-            ShTransferKind::Unshadowed => 0,
-            ShTransferKind::Shadowed => 1,
-            ShTransferKind::Interreflected { bounces } => 1 + bounces as u64,
+    /// The name used in settings and on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ShTransferKind::Unshadowed => "unshadowed",
+            ShTransferKind::Shadowed => "shadowed",
+            ShTransferKind::Interreflected => "interreflected",
         }
     }
 }
 
-/// Settings of [`bake`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Settings of [`bake`]: what a bundle records of an `sh` bake (serde, field names as the
+/// bundle's `settings` metadata since format 1), and, with the `cli` feature, the options of
+/// `relight bake --method sh`. The SH order, bounces and seed are shared with other methods
+/// on the command line, so they are not options of this struct there.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(feature = "cli", command(next_help_heading = "SH bake (--method sh)"))]
 pub struct ShBakeSettings {
     /// SH order `n` (bands `0..n`, `n^2` coefficients), `1..=relight_sphere::sh::MAX_ORDER`.
+    #[cfg_attr(feature = "cli", arg(skip = 5usize))]
     pub order: usize,
-    /// Directions per vertex (and per Neumann pass), `>= 1`. Ignored by `Unshadowed`.
+    /// Transfer: unshadowed, shadowed or interreflected (Sloan 2002 sec. 5).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = ShTransferKind::Shadowed))]
+    pub transfer: ShTransferKind,
+    /// Interreflection bounces after the direct one (`Interreflected` only, else 0),
+    /// `0..=MAX_BOUNCES`.
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub bounces: u32,
+    /// Directions per vertex (and per Neumann pass), `>= 1`. Ignored by `unshadowed`.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1024))]
     pub samples: u32,
     /// Seed of the per-vertex sample rotations.
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub seed: u64,
-    /// Transfer to bake.
-    pub kind: ShTransferKind,
-    /// Worker threads; `None` = rayon's global pool (all cores).
+    /// Worker threads; `None` = rayon's global pool (all cores). Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub threads: Option<usize>,
-    /// Show an indicatif progress bar on stderr.
+    /// Show an indicatif progress bar on stderr. Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub progress: bool,
 }
 
 impl Default for ShBakeSettings {
-    /// Order 5, 1024 samples, seed 0, shadowed, all cores, no progress bar.
+    /// Order 5, shadowed, 1024 samples, seed 0, all cores, no progress bar.
     fn default() -> Self {
         ShBakeSettings {
             order: 5,
+            transfer: ShTransferKind::Shadowed,
+            bounces: 0,
             samples: 1024,
             seed: 0,
-            kind: ShTransferKind::Shadowed,
             threads: None,
             progress: false,
+        }
+    }
+}
+
+impl ShBakeSettings {
+    /// Number of passes over all vertices: 0 for the closed form, 1 + bounces otherwise.
+    fn ray_passes(&self) -> u64 {
+        match self.transfer {
+            ShTransferKind::Unshadowed => 0,
+            ShTransferKind::Shadowed => 1,
+            ShTransferKind::Interreflected => 1 + self.bounces as u64,
         }
     }
 }
@@ -155,10 +186,11 @@ impl ShBakeSettings {
         if self.samples == 0 {
             return err("samples must be at least 1".into());
         }
-        if let ShTransferKind::Interreflected { bounces } = self.kind {
-            if bounces > MAX_BOUNCES {
-                return err(format!("{bounces} bounces is more than {MAX_BOUNCES}"));
-            }
+        if self.bounces > MAX_BOUNCES {
+            return err(format!(
+                "{} bounces is more than {MAX_BOUNCES}",
+                self.bounces
+            ));
         }
         if self.threads == Some(0) {
             return err("threads must be at least 1".into());
@@ -263,23 +295,56 @@ pub fn bake(
     caster: &dyn RayCaster,
     settings: &ShBakeSettings,
 ) -> Result<ShTransfer, BakeError> {
-    bake_with_hit_budget(mesh, materials, caster, settings, HIT_BUDGET_BYTES)
+    bake_range(mesh, materials, caster, settings, 0..mesh.vertex_count())
 }
 
-/// [`bake`] with an explicit memory budget for first-pass hits (tests force both paths).
+/// [`bake`] restricted to the vertices `range`: the transfer of those vertices only
+/// (`vertex_count = range.len()`), bit-identical to the same rows of the whole bake, since
+/// every vertex's directions depend on the seed and its index only. Unshadowed and shadowed
+/// transfer cost `range.len()` vertices; interreflected transfer gathers bounce `k + 1` from
+/// bounce `k` of *every* vertex, so its earlier passes run over the whole mesh and only the
+/// last is restricted (a sharded interreflected bake saves one pass in `1 + bounces`).
+///
+/// # Errors
+/// As [`bake`], and [`BakeError::Settings`] for a range outside the mesh.
+pub fn bake_range(
+    mesh: &TriMesh,
+    materials: &[Material],
+    caster: &dyn RayCaster,
+    settings: &ShBakeSettings,
+    range: Range<usize>,
+) -> Result<ShTransfer, BakeError> {
+    bake_with_hit_budget(mesh, materials, caster, settings, range, HIT_BUDGET_BYTES)
+}
+
+/// [`bake_range`] with an explicit memory budget for first-pass hits (tests force both
+/// paths).
 fn bake_with_hit_budget(
     mesh: &TriMesh,
     materials: &[Material],
     caster: &dyn RayCaster,
     settings: &ShBakeSettings,
+    range: Range<usize>,
     hit_budget: usize,
 ) -> Result<ShTransfer, BakeError> {
     settings.validate()?;
     check_mesh(mesh, materials)?;
-    let passes = settings.kind.ray_passes().max(1);
+    if range.start > range.end || range.end > mesh.vertex_count() {
+        return Err(BakeError::Settings(format!(
+            "vertex range {}..{} is not inside the mesh's {} vertices",
+            range.start,
+            range.end,
+            mesh.vertex_count()
+        )));
+    }
+    let all = 0..mesh.vertex_count();
+    let (passes, pass_range) = match settings.transfer {
+        ShTransferKind::Interreflected => (settings.ray_passes(), all.clone()),
+        _ => (settings.ray_passes().max(1), range.clone()),
+    };
     let pb = progress_bar(
         settings.progress,
-        passes * mesh.vertex_count() as u64,
+        passes * pass_range.len() as u64,
         "SH bake",
     );
     let data = with_threads(settings.threads, || {
@@ -292,22 +357,25 @@ fn bake_with_hit_budget(
             seed: settings.seed,
             ng: vertex_geometric_normals(mesh),
             hit_budget,
+            range: pass_range,
             pb: &pb,
         };
-        match settings.kind {
+        match settings.transfer {
             ShTransferKind::Unshadowed => ctx.unshadowed(),
             ShTransferKind::Shadowed => ctx.shadowed(),
-            ShTransferKind::Interreflected { bounces } => {
-                ctx.interreflected(&vertex_albedo(mesh, materials), bounces)
+            ShTransferKind::Interreflected => {
+                let stride = 3 * ctx.n2;
+                let full = ctx.interreflected(&vertex_albedo(mesh, materials), settings.bounces);
+                full[range.start * stride..range.end * stride].to_vec()
             }
         }
     })?;
     pb.finish_and_clear();
     Ok(ShTransfer {
         order: settings.order,
-        kind: settings.kind,
-        vertex_count: mesh.vertex_count(),
-        channels: settings.kind.channels(),
+        kind: settings.transfer,
+        vertex_count: range.len(),
+        channels: settings.transfer.channels(),
         data,
     })
 }
@@ -327,6 +395,8 @@ struct Ctx<'a> {
     ng: Vec<Vec3>,
     /// Bytes allowed for keeping first-pass hits (see [`Ctx::interreflected`]).
     hit_budget: usize,
+    /// The vertices of every pass (the whole mesh for interreflected transfer).
+    range: Range<usize>,
     pb: &'a ProgressBar,
 }
 
@@ -337,20 +407,21 @@ impl Ctx<'_> {
         (n != Vec3::ZERO).then_some(n)
     }
 
-    /// Run `f(v, out, scratch)` for every vertex, `out` being its `stride` floats of a new
-    /// zeroed array.
+    /// Run `f(v, out, scratch)` for every vertex `v` of the pass range, `out` being its
+    /// `stride` floats of a new zeroed array (row `v - range.start`).
     fn per_vertex<S: Send>(
         &self,
         stride: usize,
         init: impl Fn() -> S + Sync + Send,
         f: impl Fn(usize, &mut [f32], &mut S) + Sync + Send,
     ) -> Vec<f32> {
-        let mut data = vec![0.0f32; self.mesh.vertex_count() * stride];
+        let mut data = vec![0.0f32; self.range.len() * stride];
+        let first = self.range.start;
         data.par_chunks_mut(stride * CHUNK)
             .enumerate()
             .for_each_init(init, |s, (ci, chunk)| {
                 for (k, out) in chunk.chunks_exact_mut(stride).enumerate() {
-                    f(ci * CHUNK + k, out, s);
+                    f(first + ci * CHUNK + k, out, s);
                 }
                 self.pb.inc((chunk.len() / stride) as u64);
             });

@@ -36,6 +36,7 @@ pub mod transport;
 
 use relight_scene::material::Material;
 use relight_sphere::sg::SgLobe;
+use serde::{Deserialize, Serialize};
 
 pub use crate::sh::ShTransfer;
 
@@ -100,60 +101,109 @@ pub struct SgBake {
 ///
 /// The three weights are relative to each (vertex, view)'s data energy `sum dA |T|^2` (the
 /// solver multiplies them by it, [`fit`] docs), so a dim vertex is not all prior and a bright
-/// one not all data; 0 disables a term.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// one not all data; 0 disables a term. Recorded in `sg` bundles (serde) and, with the `cli`
+/// feature, the fit options of `relight bake --method sg`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct SgFitSettings {
     /// Levenberg-Marquardt iterations per (vertex, view) refinement.
+    #[cfg_attr(feature = "cli", arg(long = "fit-iterations", default_value_t = SgFitSettings::default().max_iterations))]
     pub max_iterations: usize,
     /// Weight `beta` of the mean-alignment term across neighbouring views (eq. 2.4).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().mean_weight))]
     pub mean_weight: f64,
     /// Weight `gamma` of the width-alignment term across neighbouring views (eq. 2.5).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().width_weight))]
     pub width_weight: f64,
     /// Weight `delta` of the spatial arrangement term across processed neighbours (eq. 2.6).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().spatial_weight))]
     pub spatial_weight: f64,
     /// Relaxation sweeps after the flood fill (the paper's suggested future work, sec. 3.4).
     /// Default 0: on the armadillo one sweep removes 18 % of the flips for about a quarter
     /// more bake time (docs/RESULTS.md §8).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().relax_sweeps))]
     pub relax_sweeps: usize,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]
     pub regions: usize,
     /// Rescale each fitted (vertex, view)'s amplitudes so that the lobes' integral equals the
     /// data's (our addition, default on; `fit::vertex` docs): a constant environment is then
     /// rendered exactly.
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long = "no-energy",
+            action = clap::ArgAction::SetFalse,
+            help = "Keep the least-squares amplitudes instead of rescaling each fit to the data's integral"
+        )
+    )]
     pub energy: bool,
 }
 
-/// Settings of the SG bake ([`SgBake`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Settings of the SG bake ([`SgBake`]): what an `sg` bundle records (serde) and, with the
+/// `cli` feature, the options of `relight bake --method sg`. The SH order of the diffuse
+/// part, the indirect bounces and the seed are shared with other methods on the command line
+/// (`--sh-order`, `--bounces`, `--seed`), so they are not options of this struct there.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(feature = "cli", command(next_help_heading = "SG bake (--method sg)"))]
 pub struct SgBakeSettings {
-    /// Face size of the direct-glossy cube map (default 32: 6x32x32).
+    /// Face size of the direct-glossy cube map per view (default 32: 6x32x32 texels).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().direct_res))]
     pub direct_res: usize,
-    /// Face size of the indirect-glossy cube map (default 8: 6x8x8).
+    /// Face size of the indirect-glossy cube map per view (default 8: 6x8x8).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().indirect_res))]
     pub indirect_res: usize,
     /// Paths per (vertex, view) for the indirect glossy component.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().indirect_paths))]
     pub indirect_paths: u32,
-    /// Maximum bounces of an indirect path after leaving the vertex.
+    /// Maximum bounces of an indirect path after leaving the vertex (`--bounces`).
+    #[cfg_attr(feature = "cli", arg(skip = 3u32))]
     pub max_depth: u32,
-    /// SH order of the diffuse part (default 5).
+    /// SH order of the diffuse part (default 5; `--sh-order`).
+    #[cfg_attr(feature = "cli", arg(skip = 5usize))]
     pub diffuse_order: usize,
     /// Views below this elevation (degrees) over the shading horizon are clamped to it.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().horizon_deg, allow_hyphen_values = true))]
     pub horizon_deg: f32,
     /// Trace visibility (default). `false` bakes every texel above the horizons as visible:
     /// the transport of prefiltered environment mapping, which ignores shadowing (the
     /// baseline of the paper's Fig. 3-5), in the same representation.
+    #[serde(default = "yes")]
+    #[cfg_attr(
+        feature = "cli",
+        arg(
+            long = "no-visibility",
+            action = clap::ArgAction::SetFalse,
+            help = "Ignore visibility: bake the transport of prefiltered environment mapping (no shadowing), the baseline of Green 2005's Fig. 3-5"
+        )
+    )]
     pub visibility: bool,
     /// Gaussians for the direct glossy component, `1..=10`.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().direct_lobes))]
     pub direct_lobes: usize,
     /// Gaussians for the indirect glossy component, `0..=10` (0: no indirect component).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgBakeSettings::default().indirect_lobes))]
     pub indirect_lobes: usize,
     /// Fit settings.
+    #[cfg_attr(feature = "cli", command(flatten))]
     pub fit: SgFitSettings,
-    /// Seed of all random numbers (the bake is deterministic for a seed, any thread count).
+    /// Seed of all random numbers (the bake is deterministic for a seed, any thread count;
+    /// `--seed`).
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub seed: u64,
-    /// Worker threads; `None` = all cores.
+    /// Worker threads; `None` = all cores. Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub threads: Option<usize>,
-    /// Show a progress bar on stderr.
+    /// Show a progress bar on stderr. Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub progress: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// Bake the SG transport of a mesh: tabulate ([`transport`]) and fit ([`fit`]) every vertex

@@ -11,14 +11,22 @@ fn lambert(a: Vec3) -> Material {
     Material::Lambert { albedo: a }
 }
 
-fn settings(order: usize, samples: u32, kind: ShTransferKind) -> ShBakeSettings {
+fn settings(order: usize, samples: u32, transfer: ShTransferKind) -> ShBakeSettings {
     ShBakeSettings {
         order,
         samples,
         seed: 3,
-        kind,
+        transfer,
+        bounces: 0,
         threads: None,
         progress: false,
+    }
+}
+
+fn interreflected(order: usize, samples: u32, bounces: u32) -> ShBakeSettings {
+    ShBakeSettings {
+        bounces,
+        ..settings(order, samples, ShTransferKind::Interreflected)
     }
 }
 
@@ -246,13 +254,7 @@ fn interreflected_with_black_surroundings_is_shadowed_times_albedo() {
         &settings(3, 64, ShTransferKind::Shadowed),
     )
     .unwrap();
-    let ir = bake(
-        &mesh,
-        &mats,
-        caster.as_ref(),
-        &settings(3, 64, ShTransferKind::Interreflected { bounces: 2 }),
-    )
-    .unwrap();
+    let ir = bake(&mesh, &mats, caster.as_ref(), &interreflected(3, 64, 2)).unwrap();
     ir.validate().unwrap();
     let albedo = crate::transport::vertex_albedo(&mesh, &mats);
     for v in 0..mesh.vertex_count() {
@@ -275,7 +277,7 @@ fn interreflection_between_facing_planes_matches_one_bounce_path_tracing() {
     let ir_seed = |seed: u64| {
         let s = ShBakeSettings {
             seed,
-            ..settings(3, 256, ShTransferKind::Interreflected { bounces: 1 })
+            ..interreflected(3, 256, 1)
         };
         bake(&mesh, &mats, caster.as_ref(), &s).unwrap()
     };
@@ -369,10 +371,9 @@ fn bake_is_deterministic_for_a_seed_whatever_the_thread_count() {
     let mesh = sphere_on_plane();
     let caster = build_default(&mesh);
     let mats = [lambert(Vec3::splat(0.7)), lambert(Vec3::new(0.2, 0.5, 0.8))];
-    let kind = ShTransferKind::Interreflected { bounces: 1 };
     let one = ShBakeSettings {
         threads: Some(1),
-        ..settings(3, 32, kind)
+        ..interreflected(3, 32, 1)
     };
     let two = ShBakeSettings {
         threads: Some(2),
@@ -392,13 +393,42 @@ fn bake_is_deterministic_for_a_seed_whatever_the_thread_count() {
 }
 
 #[test]
+fn vertex_ranges_are_the_rows_of_the_whole_bake() {
+    let mesh = sphere_on_plane();
+    let caster = build_default(&mesh);
+    let mats = [lambert(Vec3::splat(0.7)), lambert(Vec3::new(0.2, 0.5, 0.8))];
+    let n = mesh.vertex_count();
+    for s in [
+        settings(3, 32, ShTransferKind::Unshadowed),
+        settings(3, 32, ShTransferKind::Shadowed),
+        interreflected(3, 32, 1),
+    ] {
+        let whole = bake(&mesh, &mats, caster.as_ref(), &s).unwrap();
+        // Uneven parts, one of them empty, not aligned with the parallel chunks.
+        let cuts = [0, 37, 37, n / 2 + 5, n];
+        let mut joined = Vec::new();
+        for w in cuts.windows(2) {
+            let part = bake_range(&mesh, &mats, caster.as_ref(), &s, w[0]..w[1]).unwrap();
+            assert_eq!(part.vertex_count, w[1] - w[0]);
+            part.validate().unwrap();
+            joined.extend_from_slice(&part.data);
+        }
+        assert_eq!(joined, whole.data, "{:?}", s.transfer);
+    }
+    let s = settings(2, 8, ShTransferKind::Shadowed);
+    assert!(bake_range(&mesh, &mats, caster.as_ref(), &s, 0..n + 1).is_err());
+}
+
+#[test]
 fn kept_hits_and_retraced_rays_give_the_same_bits() {
     let mesh = sphere_on_plane();
     let caster = build_default(&mesh);
     let mats = [lambert(Vec3::new(0.8, 0.6, 0.4)), lambert(Vec3::splat(0.5))];
-    let s = settings(4, 64, ShTransferKind::Interreflected { bounces: 2 });
-    let kept = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, usize::MAX).unwrap();
-    let traced = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, 0).unwrap();
+    let s = interreflected(4, 64, 2);
+    let all = 0..mesh.vertex_count();
+    let kept =
+        bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, all.clone(), usize::MAX).unwrap();
+    let traced = bake_with_hit_budget(&mesh, &mats, caster.as_ref(), &s, all, 0).unwrap();
     assert_eq!(kept.data, traced.data);
     // (That closest-hit rays of the kept-hits pass see the same visibility as the occlusion
     // rays of the shadowed bake is checked bit for bit by
@@ -477,20 +507,19 @@ fn bake_bunny_figures() {
     for kind in [
         ShTransferKind::Unshadowed,
         ShTransferKind::Shadowed,
-        ShTransferKind::Interreflected { bounces: 2 },
+        ShTransferKind::Interreflected,
     ] {
         let s = ShBakeSettings {
             order: 5,
             samples: 256,
-            seed: 0,
-            kind,
-            threads: None,
-            progress: false,
+            transfer: kind,
+            bounces: 2,
+            ..Default::default()
         };
         let t0 = std::time::Instant::now();
         let t = bake(&mesh, &mats, caster.as_ref(), &s).unwrap();
         let secs = t0.elapsed().as_secs_f64();
-        let rays = (mesh.vertex_count() as u64 * 256 * kind.ray_passes()) as f64;
+        let rays = (mesh.vertex_count() as u64 * 256 * s.ray_passes()) as f64;
         println!(
             "{kind:?}: {secs:.2} s ({:.2} M vertex-directions/s)",
             rays / secs / 1e6

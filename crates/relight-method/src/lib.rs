@@ -1,0 +1,465 @@
+//! # relight-method: one seam for every precomputed-transport method
+//!
+//! A method is what a user picks with `--method`: [`MethodKind`]. Each one has the same verbs,
+//! in one folder of this crate:
+//!
+//! | verb | where | what |
+//! |---|---|---|
+//! | settings | `Method::Settings` | serde (recorded in the bundle once), validated, and with the `cli` feature the clap options of `relight bake` |
+//! | bake | [`Method::bake`] | scene + settings + vertex range -> the method's baked data |
+//! | store / load | [`Method::store`], [`Method::load`] | the baked data <-> bundle tensors (schema in [`store`]) |
+//! | frame | [`Frame`] | prepare an environment once, then render any camera |
+//!
+//! Methods that share a bake share its [`BakeKind`]: `hybrid` (thesis ch. 4) is a frame over
+//! the `sh` bake, so `hybrid/` has settings and a frame only.
+//!
+//! [`read_any`] reads any bundle into the closed enum [`Baked`]; [`Baked::frame`] makes the
+//! frame of a method, or says which bake the method needs.
+//!
+//! # Adding a method (what `cuts` and `vmf` do)
+//! 1. The maths and the bake loop go in `relight-bake/src/<name>/` (settings struct with
+//!    `#[derive(Serialize, Deserialize)]` and `#[cfg_attr(feature = "cli", derive(clap::Args))]`,
+//!    `validate()`), the per-pixel or per-vertex shading in `relight-render/src/shade_<name>.rs`.
+//! 2. Here: `src/<name>/mod.rs` with the baked type and `impl Method`, `store.rs` with its
+//!    tensors (prefixed `<name>_`), `frame.rs` with its frame settings and `impl Frame`.
+//! 3. One arm in each closed set: [`MethodKind`], [`BakeKind`], [`Baked`], [`FrameSettings`].
+//!    The compiler then lists every `match` to extend (the CLI's bake dispatch among them).
+//! 4. Its evaluation against Mitsuba in `relight-eval`, its benchmark in `relight-eval::bench`.
+//!
+//! ```no_run
+//! use relight_method::{read_any, FrameOptions, FrameSettings, MethodKind};
+//! # fn demo(env: &relight_scene::scene::Environment) -> Result<(), relight_method::MethodError> {
+//! let baked = read_any(std::path::Path::new("bake.relight"))?;
+//! let mut frame = baked.frame(&FrameSettings::default_for(MethodKind::Sh))?;
+//! frame.set_environment(env)?;
+//! let out = frame.render(&baked.scene().desc.camera, &FrameOptions::default());
+//! assert_eq!(out.image.width, baked.scene().desc.camera.width as usize);
+//! # Ok(()) }
+//! ```
+
+mod error;
+pub mod hybrid;
+pub mod sg;
+pub mod sh;
+pub mod store;
+
+pub use error::MethodError;
+pub use store::{BakeRecord, BakedScene};
+
+use relight_bundle::Bundle;
+use relight_render::Image;
+use relight_scene::accel::Backend;
+use relight_scene::camera::Camera;
+use relight_scene::scene::{Environment, Scene};
+use relight_scene::scene_file::SceneDesc;
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+use std::ops::Range;
+use std::path::Path;
+
+/// The methods a user can pick (`--method`). A closed set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum MethodKind {
+    /// Diffuse SH PRT: shadowed or interreflected transfer (Sloan et al. 2002; thesis 4.2).
+    Sh,
+    /// The `sh` bake lit by the environment's low-order SH part plus extracted cap lights
+    /// with shadow maps (hybrid thesis 4.3-4.4).
+    Hybrid,
+    /// View-dependent glossy PRT with spherical Gaussians (Green 2005).
+    Sg,
+}
+
+impl MethodKind {
+    /// Every method.
+    pub const ALL: [MethodKind; 3] = [MethodKind::Sh, MethodKind::Hybrid, MethodKind::Sg];
+
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodKind::Sh => "sh",
+            MethodKind::Hybrid => "hybrid",
+            MethodKind::Sg => "sg",
+        }
+    }
+
+    /// The bake the method renders.
+    pub fn bake_kind(self) -> BakeKind {
+        match self {
+            MethodKind::Sh | MethodKind::Hybrid => BakeKind::Sh,
+            MethodKind::Sg => BakeKind::Sg,
+        }
+    }
+}
+
+/// The kinds of baked data a bundle can hold (its `method` metadata). A closed set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BakeKind {
+    /// Per-vertex SH transfer ([`sh::ShBaked`]), rendered by `sh` and `hybrid`.
+    Sh,
+    /// Per-vertex, per-view spherical Gaussians ([`sg::SgBaked`]), rendered by `sg`.
+    Sg,
+}
+
+impl BakeKind {
+    /// The name in bundles and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            BakeKind::Sh => "sh",
+            BakeKind::Sg => "sg",
+        }
+    }
+
+    /// The methods that render this bake.
+    pub fn methods(self) -> Vec<MethodKind> {
+        MethodKind::ALL
+            .into_iter()
+            .filter(|m| m.bake_kind() == self)
+            .collect()
+    }
+}
+
+/// What a bake reads: the scene description, the scene built from it and where it came from
+/// (named in errors).
+#[derive(Clone, Copy)]
+pub struct BakeInput<'a> {
+    /// The description (recorded in the bundle).
+    pub desc: &'a SceneDesc,
+    /// The scene built from it.
+    pub scene: &'a Scene,
+    /// The scene file, or a name in `<>` for built-in scenes.
+    pub origin: &'a Path,
+}
+
+/// How a bake runs (none of it changes the result, except `f16`, a storage choice).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeContext {
+    /// Ray-casting back-end.
+    pub backend: Backend,
+    /// Store the method's float tensors as f16.
+    pub f16: bool,
+    /// Show progress bars on stderr.
+    pub progress: bool,
+}
+
+impl Default for BakeContext {
+    /// The fastest back-end available, f32, no progress bars.
+    fn default() -> Self {
+        BakeContext {
+            backend: Backend::available()[0],
+            f16: false,
+            progress: false,
+        }
+    }
+}
+
+/// The verbs of a method's bake: settings, bake, store, load.
+pub trait Method {
+    /// The bake kind this method produces.
+    const KIND: BakeKind;
+    /// Its settings: serde (recorded in the bundle once) and validated.
+    type Settings: Serialize + DeserializeOwned + Clone + std::fmt::Debug + PartialEq;
+    /// What the bake produces and the bundle stores.
+    type Baked;
+
+    /// Check every setting's range; the message names the setting.
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`].
+    fn validate(settings: &Self::Settings) -> Result<(), MethodError>;
+
+    /// Bake the vertices `range` of `input` (all of them: `0..vertex_count`).
+    ///
+    /// # Errors
+    /// Invalid settings or scene, a back-end that cannot be built, or a method that cannot
+    /// bake a part (the message says why).
+    fn bake(
+        input: BakeInput,
+        settings: &Self::Settings,
+        range: Range<usize>,
+        ctx: &BakeContext,
+    ) -> Result<Self::Baked, MethodError>;
+
+    /// Write the baked data into a bundle (scene part, settings, record and tensors).
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`] if the settings cannot be recorded.
+    fn store(baked: &Self::Baked) -> Result<Bundle, MethodError>;
+
+    /// Read and check the baked data of a bundle read from `path` (named in errors); old
+    /// bundles (before schema 2) are migrated.
+    ///
+    /// # Errors
+    /// [`MethodError::Invalid`] or [`MethodError::Bundle`] naming the file and the problem.
+    fn load(bundle: &Bundle, path: &Path) -> Result<Self::Baked, MethodError>;
+}
+
+/// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
+#[derive(Clone, Debug)]
+pub enum Baked {
+    /// An `sh` bake.
+    Sh(sh::ShBaked),
+    /// An `sg` bake.
+    Sg(sg::SgBaked),
+}
+
+impl Baked {
+    /// Its kind.
+    pub fn kind(&self) -> BakeKind {
+        match self {
+            Baked::Sh(_) => BakeKind::Sh,
+            Baked::Sg(_) => BakeKind::Sg,
+        }
+    }
+
+    /// The scene it was baked from.
+    pub fn scene(&self) -> &BakedScene {
+        match self {
+            Baked::Sh(b) => &b.scene,
+            Baked::Sg(b) => &b.scene,
+        }
+    }
+
+    /// How it was baked.
+    pub fn record(&self) -> &BakeRecord {
+        match self {
+            Baked::Sh(b) => &b.record,
+            Baked::Sg(b) => &b.record,
+        }
+    }
+
+    /// Its settings as recorded (JSON).
+    pub fn settings_json(&self) -> String {
+        match self {
+            Baked::Sh(b) => serde_json::to_string(&b.settings),
+            Baked::Sg(b) => serde_json::to_string(&b.settings),
+        }
+        .unwrap_or_default()
+    }
+
+    /// The bundle of this bake.
+    ///
+    /// # Errors
+    /// As [`Method::store`].
+    pub fn to_bundle(&self) -> Result<Bundle, MethodError> {
+        match self {
+            Baked::Sh(b) => sh::Sh::store(b),
+            Baked::Sg(b) => sg::Sg::store(b),
+        }
+    }
+
+    /// Write the bundle atomically to `path`.
+    ///
+    /// # Errors
+    /// As [`Method::store`], or an IO error naming `path`.
+    pub fn write(&self, path: &Path) -> Result<(), MethodError> {
+        Ok(self.to_bundle()?.write(path)?)
+    }
+
+    /// A frame of `settings`' method over this bake; `path` (the bundle, for messages).
+    ///
+    /// # Errors
+    /// [`MethodError::WrongBake`] when the method renders another bake kind,
+    /// [`MethodError::PartialBake`] for a part of a sharded bake, invalid frame settings.
+    pub fn frame_of(
+        &self,
+        settings: &FrameSettings,
+        path: &Path,
+    ) -> Result<Box<dyn Frame + Sync + '_>, MethodError> {
+        let method = settings.method();
+        let vertices = self.scene().mesh.vertex_count();
+        self.record().require_whole(path, vertices)?;
+        match (self, settings) {
+            (Baked::Sh(b), FrameSettings::Sh(s)) => Ok(Box::new(sh::ShFrame::new(b, s)?)),
+            (Baked::Sh(b), FrameSettings::Hybrid(s)) => {
+                Ok(Box::new(hybrid::HybridFrame::new(b, s)?))
+            }
+            (Baked::Sg(b), FrameSettings::Sg(s)) => Ok(Box::new(sg::SgFrame::new(b, s)?)),
+            _ => Err(MethodError::WrongBake {
+                path: path.to_path_buf(),
+                found: self.kind(),
+                needed: method.bake_kind(),
+                method,
+            }),
+        }
+    }
+
+    /// [`Baked::frame_of`] with no bundle path in messages.
+    ///
+    /// # Errors
+    /// As [`Baked::frame_of`].
+    pub fn frame(
+        &self,
+        settings: &FrameSettings,
+    ) -> Result<Box<dyn Frame + Sync + '_>, MethodError> {
+        self.frame_of(settings, Path::new("<bake>"))
+    }
+}
+
+impl From<sh::ShBaked> for Baked {
+    fn from(b: sh::ShBaked) -> Self {
+        Baked::Sh(b)
+    }
+}
+
+impl From<sg::SgBaked> for Baked {
+    fn from(b: sg::SgBaked) -> Self {
+        Baked::Sg(b)
+    }
+}
+
+/// Read any bundle and check it: the right [`Baked`] arm for its `method` metadata.
+///
+/// # Errors
+/// IO, checksum, layout or content errors naming `path`; an unknown method.
+pub fn read_any(path: &Path) -> Result<Baked, MethodError> {
+    from_bundle(&Bundle::read(path)?, path)
+}
+
+/// [`read_any`] of a bundle already in memory, read from `path`.
+///
+/// # Errors
+/// As [`read_any`].
+pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
+    let method = b.meta(path, "method")?;
+    match method {
+        "sh" => Ok(Baked::Sh(sh::Sh::load(b, path)?)),
+        "sg" => Ok(Baked::Sg(sg::Sg::load(b, path)?)),
+        m => Err(MethodError::invalid(
+            path,
+            format!("unknown bake method '{m}' (this relight reads sh, sg)"),
+        )),
+    }
+}
+
+/// Frame settings of every method. A closed set (one arm per [`MethodKind`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum FrameSettings {
+    /// `sh`.
+    Sh(sh::ShFrameSettings),
+    /// `hybrid`.
+    Hybrid(hybrid::HybridSettings),
+    /// `sg`.
+    Sg(sg::SgFrameSettings),
+}
+
+impl FrameSettings {
+    /// The method of these settings.
+    pub fn method(&self) -> MethodKind {
+        match self {
+            FrameSettings::Sh(_) => MethodKind::Sh,
+            FrameSettings::Hybrid(_) => MethodKind::Hybrid,
+            FrameSettings::Sg(_) => MethodKind::Sg,
+        }
+    }
+
+    /// The default settings of `method`.
+    pub fn default_for(method: MethodKind) -> FrameSettings {
+        match method {
+            MethodKind::Sh => FrameSettings::Sh(Default::default()),
+            MethodKind::Hybrid => FrameSettings::Hybrid(Default::default()),
+            MethodKind::Sg => FrameSettings::Sg(Default::default()),
+        }
+    }
+}
+
+/// Per-frame options common to every method.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameOptions {
+    /// Samples per pixel along each axis (`n x n`, a box filter like Mitsuba's), `1..=16`.
+    pub supersample: u32,
+    /// Draw the environment behind the objects.
+    pub background: bool,
+}
+
+impl Default for FrameOptions {
+    /// 2 x 2 samples per pixel, no background.
+    fn default() -> Self {
+        FrameOptions {
+            supersample: 2,
+            background: false,
+        }
+    }
+}
+
+/// Where the time of a frame went, milliseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrameTimes {
+    /// Per-vertex work that depends on the camera (SG view blend; 0 for view-independent
+    /// methods, whose per-vertex work is in [`Frame::set_environment`]).
+    pub vertex_ms: f64,
+    /// Rasterisation and per-pixel shading.
+    pub pixel_ms: f64,
+}
+
+/// A rendered frame.
+#[derive(Clone, Debug)]
+pub struct FrameOutput {
+    /// The linear-radiance image.
+    pub image: Image,
+    /// Where the time went.
+    pub times: FrameTimes,
+}
+
+/// Where the time of preparing an environment went, milliseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct PrepareTimes {
+    /// Projection, decomposition or prefiltering of the environment (once per map).
+    pub environment_ms: f64,
+    /// Per-vertex shading and other view-independent work (once per map or rotation).
+    pub shade_ms: f64,
+}
+
+/// A method's renderer over one bake: prepare an environment once, render any camera.
+pub trait Frame {
+    /// The method.
+    fn method(&self) -> MethodKind;
+
+    /// Prepare `env` (its map, rotation and scale): everything that does not depend on the
+    /// camera. Must be called before [`Frame::render`].
+    ///
+    /// # Errors
+    /// A method-specific failure to prepare (e.g. an environment the decomposition refuses).
+    fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError>;
+
+    /// Render `camera` under the prepared environment.
+    ///
+    /// # Panics
+    /// If no environment was set, or `opts.supersample` is 0 (checked by callers that take
+    /// user input).
+    fn render(&self, camera: &Camera, opts: &FrameOptions) -> FrameOutput;
+
+    /// One line saying what was rendered (lights extracted, lobes, orders), for reports.
+    fn summary(&self) -> String;
+}
+
+/// Check [`FrameOptions`] from user input.
+///
+/// # Errors
+/// [`MethodError::Settings`] naming the option.
+pub fn check_frame_options(o: &FrameOptions) -> Result<(), MethodError> {
+    if !(1..=16).contains(&o.supersample) {
+        return Err(MethodError::Settings(format!(
+            "supersample {} is not in 1..=16",
+            o.supersample
+        )));
+    }
+    Ok(())
+}
+
+/// Milliseconds since `t`.
+pub(crate) fn ms_since(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Build the ray caster of `input` with `ctx`'s back-end.
+pub(crate) fn build_caster(
+    input: &BakeInput,
+    ctx: &BakeContext,
+) -> Result<Box<dyn relight_scene::accel::RayCaster>, MethodError> {
+    relight_scene::accel::build(&input.scene.mesh, ctx.backend).map_err(|e| MethodError::Caster {
+        path: input.origin.to_path_buf(),
+        message: e.to_string(),
+    })
+}

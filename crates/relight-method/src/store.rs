@@ -1,0 +1,293 @@
+//! What every bundle holds whatever its method, and checked access to its tensors.
+//!
+//! # Bundle schema (docs/BUNDLE.md has the full table)
+//! Metadata (strings, JSON where structured):
+//! * `method`: the bake kind, `sh` or `sg` ([`crate::BakeKind::name`]);
+//! * `schema`: `2` since the method seam (absent in older bundles, which still load:
+//!   [`legacy_record`] and each method's settings migration read them);
+//! * `relight_version`: the crate version that wrote it;
+//! * `settings`: the method's settings (its `Method::Settings`, serde), written once;
+//! * `record`: how the bake ran ([`BakeRecord`]: back-end, seconds, storage precision, vertex
+//!   range);
+//! * `scene`, `materials`: the scene description and the merged scene's materials.
+//!
+//! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
+//! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32). Each method adds its own,
+//! prefixed by nothing for `sh` (`albedo`, `transfer`) and by `sg_` for `sg`.
+
+use crate::MethodError;
+use glam::{Vec2, Vec3};
+use relight_bundle::{Bundle, Tensor};
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_scene::scene_file::SceneDesc;
+use serde::{de::DeserializeOwned, Deserialize, Serialize};
+use std::ops::Range;
+use std::path::Path;
+
+/// Value of the `schema` metadata key written by this version.
+pub const SCHEMA: u32 = 2;
+
+/// Largest finite f16: values stored as f16 are clamped to it.
+pub const F16_MAX: f32 = 65504.0;
+
+/// How a bake ran: recorded beside its settings, never an input of the bake.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BakeRecord {
+    /// Ray-casting back-end (`embree`, `bvh`).
+    pub backend: String,
+    /// Wall time of the bake, seconds.
+    pub seconds: f64,
+    /// Whether the method's float tensors are stored as f16.
+    pub f16: bool,
+    /// The vertices baked, when the bundle is one part of a sharded bake (`None`: all).
+    #[serde(default)]
+    pub range: Option<(usize, usize)>,
+}
+
+impl BakeRecord {
+    /// Check a part range against the mesh: `Ok` for a whole bake.
+    ///
+    /// # Errors
+    /// [`MethodError::PartialBake`] for a part bundle.
+    pub fn require_whole(&self, path: &Path, vertices: usize) -> Result<(), MethodError> {
+        match self.range {
+            Some((start, end)) if (start, end) != (0, vertices) => Err(MethodError::PartialBake {
+                path: path.to_path_buf(),
+                start,
+                end,
+                total: vertices,
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// The record of a bake of `range` over `vertices` vertices.
+    pub fn new(
+        backend: &str,
+        seconds: f64,
+        f16: bool,
+        range: &Range<usize>,
+        vertices: usize,
+    ) -> Self {
+        BakeRecord {
+            backend: backend.into(),
+            seconds,
+            f16,
+            range: (*range != (0..vertices)).then_some((range.start, range.end)),
+        }
+    }
+}
+
+/// The scene part of every bake: what it was made from.
+#[derive(Clone, Debug)]
+pub struct BakedScene {
+    /// The scene description (its environment and camera are the defaults for rendering).
+    pub desc: SceneDesc,
+    /// The merged mesh.
+    pub mesh: TriMesh,
+    /// The scene's materials, indexed by `mesh.material_ids`.
+    pub materials: Vec<Material>,
+}
+
+impl BakedScene {
+    /// Metadata and tensors of the scene part, with the method name, schema, version,
+    /// settings and record.
+    pub(crate) fn store<S: Serialize>(
+        &self,
+        b: &mut Bundle,
+        method: &str,
+        settings: &S,
+        record: &BakeRecord,
+    ) -> Result<(), MethodError> {
+        let mut meta = |k: &str, v: String| b.metadata.insert(k.into(), v);
+        meta("method", method.into());
+        meta("schema", SCHEMA.to_string());
+        meta("relight_version", env!("CARGO_PKG_VERSION").into());
+        meta("settings", json(settings)?);
+        meta("record", json(record)?);
+        meta("scene", json(&self.desc)?);
+        meta("materials", json(&self.materials)?);
+        let m = &self.mesh;
+        let (v, t) = (m.vertex_count(), m.triangle_count());
+        b.insert(
+            "positions",
+            Tensor::from_f32(vec![v, 3], &flat3(&m.positions)),
+        );
+        b.insert("normals", Tensor::from_f32(vec![v, 3], &flat3(&m.normals)));
+        if let Some(uv) = &m.uvs {
+            let f: Vec<f32> = uv.iter().flat_map(|p| p.to_array()).collect();
+            b.insert("uvs", Tensor::from_f32(vec![v, 2], &f));
+        }
+        let idx: Vec<u32> = m.indices.iter().flatten().copied().collect();
+        b.insert("indices", Tensor::from_u32(vec![t, 3], &idx));
+        b.insert("material_ids", Tensor::from_u32(vec![t], &m.material_ids));
+        Ok(())
+    }
+
+    /// Read and check the scene part of a bundle read from `path`.
+    pub(crate) fn load(r: &TensorReader) -> Result<BakedScene, MethodError> {
+        let desc: SceneDesc = r.json("scene")?;
+        let materials: Vec<Material> = r.json("materials")?;
+        for m in &materials {
+            m.validate()
+                .map_err(|e| r.invalid(format!("material {m:?}: {e}")))?;
+        }
+        let mesh = r.mesh(materials.len())?;
+        Ok(BakedScene {
+            desc,
+            mesh,
+            materials,
+        })
+    }
+}
+
+/// JSON text of a value to record, with a typed error.
+pub(crate) fn json<S: Serialize>(v: &S) -> Result<String, MethodError> {
+    serde_json::to_string(v).map_err(|e| MethodError::Settings(format!("cannot record: {e}")))
+}
+
+/// `[x, y, z]` triples flattened.
+pub(crate) fn flat3(v: &[Vec3]) -> Vec<f32> {
+    v.iter().flat_map(|p| p.to_array()).collect()
+}
+
+/// Flat floats as `Vec3`s.
+pub(crate) fn unflat3(v: &[f32]) -> Vec<Vec3> {
+    v.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+/// A float tensor, as f16 (clamped to its range) or f32.
+pub(crate) fn float_tensor(shape: Vec<usize>, data: &[f32], f16: bool) -> Tensor {
+    if f16 {
+        let c: Vec<f32> = data.iter().map(|x| x.clamp(-F16_MAX, F16_MAX)).collect();
+        Tensor::from_f32_as_f16(shape, &c)
+    } else {
+        Tensor::from_f32(shape, data)
+    }
+}
+
+/// The record of a bundle written before the `record` key existed (schema 1): its
+/// `settings` object held `backend`, `seconds` and `f16` beside the method's settings.
+pub(crate) fn legacy_record(r: &TensorReader) -> Result<BakeRecord, MethodError> {
+    r.json("settings")
+}
+
+/// Checked access to the metadata and tensors of a bundle read from `path` (named in every
+/// error).
+pub(crate) struct TensorReader<'a> {
+    /// The bundle.
+    pub b: &'a Bundle,
+    /// Where it was read from.
+    pub path: &'a Path,
+}
+
+impl<'a> TensorReader<'a> {
+    /// An [`MethodError::Invalid`] naming the bundle.
+    pub fn invalid(&self, message: impl Into<String>) -> MethodError {
+        MethodError::invalid(self.path, message)
+    }
+
+    /// Whether the bundle predates the `schema` key.
+    pub fn is_legacy(&self) -> bool {
+        !self.b.metadata.contains_key("schema")
+    }
+
+    /// A required metadata string.
+    pub fn meta(&self, key: &str) -> Result<&'a str, MethodError> {
+        Ok(self.b.meta(self.path, key)?)
+    }
+
+    /// A required JSON metadata value.
+    pub fn json<T: DeserializeOwned>(&self, key: &str) -> Result<T, MethodError> {
+        serde_json::from_str(self.meta(key)?)
+            .map_err(|e| self.invalid(format!("metadata '{key}' is not valid: {e}")))
+    }
+
+    /// The bake record (schema 2), or the one of a legacy bundle.
+    pub fn record(&self) -> Result<BakeRecord, MethodError> {
+        if self.is_legacy() {
+            legacy_record(self)
+        } else {
+            self.json("record")
+        }
+    }
+
+    /// A required tensor of the expected shape.
+    pub fn shaped(&self, name: &str, shape: &[usize]) -> Result<&'a Tensor, MethodError> {
+        let t = self.b.tensor(self.path, name)?;
+        if t.shape != shape {
+            return Err(self.invalid(format!(
+                "tensor '{name}' has shape {:?}, expected {shape:?}",
+                t.shape
+            )));
+        }
+        Ok(t)
+    }
+
+    /// A floating-point tensor of the expected shape, every value finite.
+    pub fn f32s(&self, name: &str, shape: &[usize]) -> Result<Vec<f32>, MethodError> {
+        let v = self
+            .shaped(name, shape)?
+            .to_f32()
+            .ok_or_else(|| self.invalid(format!("tensor '{name}' is not floating point")))?;
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(self.invalid(format!(
+                "tensor '{name}' has a non-finite value at element {i}"
+            )));
+        }
+        Ok(v)
+    }
+
+    /// A U32 tensor of the expected shape.
+    pub fn u32s(&self, name: &str, shape: &[usize]) -> Result<Vec<u32>, MethodError> {
+        self.shaped(name, shape)?
+            .to_u32()
+            .ok_or_else(|| self.invalid(format!("tensor '{name}' is not U32")))
+    }
+
+    /// The first dimension of a tensor.
+    pub fn rows(&self, name: &str) -> Result<usize, MethodError> {
+        Ok(self
+            .b
+            .tensor(self.path, name)?
+            .shape
+            .first()
+            .copied()
+            .unwrap_or(0))
+    }
+
+    /// The mesh tensors (positions, normals, optional uvs, indices, material ids), checked
+    /// against each other and against `materials` scene materials.
+    pub fn mesh(&self, materials: usize) -> Result<TriMesh, MethodError> {
+        let (v, t) = (self.rows("positions")?, self.rows("indices")?);
+        let positions = unflat3(&self.f32s("positions", &[v, 3])?);
+        let normals = unflat3(&self.f32s("normals", &[v, 3])?);
+        let uvs = match self.b.tensors.get("uvs") {
+            Some(_) => Some(
+                self.f32s("uvs", &[v, 2])?
+                    .chunks_exact(2)
+                    .map(Vec2::from_slice)
+                    .collect(),
+            ),
+            None => None,
+        };
+        let idx = self.u32s("indices", &[t, 3])?;
+        if let Some(bad) = idx.iter().find(|&&i| i as usize >= v) {
+            return Err(self.invalid(format!("triangle index {bad} out of range ({v} vertices)")));
+        }
+        let material_ids = self.u32s("material_ids", &[t])?;
+        if let Some(bad) = material_ids.iter().find(|&&i| i as usize >= materials) {
+            return Err(self.invalid(format!(
+                "material id {bad} out of range ({materials} materials)"
+            )));
+        }
+        Ok(TriMesh {
+            positions,
+            normals,
+            uvs,
+            indices: idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            material_ids,
+        })
+    }
+}
