@@ -1,153 +1,249 @@
-//! `relight bake`: scene description -> baked bundle.
+//! `relight bake`: scene description -> baked bundle, for any method.
 
-use crate::store::{kind_name, RecordedSettings, ShBake};
-use anyhow::{anyhow, bail, Context, Result};
-use relight_bake::sh::{self, ShBakeSettings, ShTransferKind};
-use relight_scene::accel::{self, Backend};
-use relight_scene::scene::Scene;
+use crate::args::{self, arg_names, given, refuse_foreign, Out};
+use anyhow::{bail, Context, Result};
+use clap::ArgMatches;
+use relight_bake::sg::SgBakeSettings;
+use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_method::sg::{MaterialBlend, Sg, SgSettings};
+use relight_method::sh::Sh;
+use relight_method::{BakeContext, BakeInput, Baked, Method, MethodKind};
+use relight_scene::material::Material;
 use relight_scene::scene_file::SceneDesc;
+use serde_json::json;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// Arguments of `relight bake`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Scene description (JSON; see crates/relight-scene/src/scene_file.rs).
     pub scene: PathBuf,
-    /// Output bundle.
+    /// Output bundle (.relight).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Method: `sh` (diffuse SH PRT) or `sg` (Green 2005 view-dependent glossy PRT with
-    /// spherical Gaussians; options under "SG bake").
-    #[arg(long, default_value = "sh")]
-    pub method: String,
-    /// SH order n (n^2 coefficients), 1..=32.
-    #[arg(long, default_value_t = 5)]
-    pub order: usize,
-    /// Transfer: unshadowed, shadowed or interreflected.
-    #[arg(long, default_value = "shadowed")]
-    pub transfer: String,
-    /// Interreflection bounces (with --transfer interreflected).
-    #[arg(long, default_value_t = 1)]
-    pub bounces: u32,
-    /// Directions per vertex.
-    #[arg(long, default_value_t = 1024)]
-    pub samples: u32,
+    /// Method to bake for (`hybrid` renders the `sh` bake, so it bakes that).
+    #[arg(long, value_enum, default_value_t = MethodKind::Sh)]
+    pub method: MethodKind,
+    /// SH order n (n^2 coefficients, 1..=32): of the transfer (sh), of the diffuse part (sg).
+    #[arg(
+        long,
+        visible_alias = "order",
+        alias = "diffuse-order",
+        default_value_t = 5
+    )]
+    pub sh_order: usize,
+    /// Indirect bounces: of the interreflected transfer (sh with --transfer interreflected;
+    /// default 1), of the indirect glossy paths (sg with --indirect-lobes > 0; default 3).
+    #[arg(long)]
+    pub bounces: Option<u32>,
     /// Random seed (the bake is deterministic for a seed, whatever the thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Store the transfer as f16 (half the size).
+    /// Store the method's float tensors as f16 (half the size).
     #[arg(long)]
     pub f16: bool,
-    /// Ray-casting back-end: embree or bvh (default: the fastest available).
+    /// Ray-casting back-end: embree or bvh (default: the fastest in this build).
     #[arg(long)]
     pub backend: Option<String>,
+    /// SH options.
     #[command(flatten)]
-    pub sg: crate::sg::SgBakeOpts,
+    pub sh: ShBakeSettings,
+    /// SG options.
+    #[command(flatten)]
+    pub sg: SgBakeSettings,
+    /// SG material blend.
+    #[command(flatten)]
+    pub blend: BlendArgs,
 }
 
-/// Parse a transfer kind.
-pub fn parse_kind(s: &str, bounces: u32) -> Result<ShTransferKind> {
-    Ok(match s {
-        "unshadowed" => ShTransferKind::Unshadowed,
-        "shadowed" => ShTransferKind::Shadowed,
-        "interreflected" => ShTransferKind::Interreflected { bounces },
-        _ => bail!("unknown --transfer '{s}' (unshadowed, shadowed, interreflected)"),
-    })
+/// `relight bake --method sg`'s spatially varying material (thesis 2.3.1).
+#[derive(clap::Args, Clone, Debug)]
+#[command(next_help_heading = "SG bake (--method sg)")]
+pub struct BlendArgs {
+    /// Blend the scene's material into this one across the mesh: a material as JSON (e.g.
+    /// '{"type": "ggx_plastic", "diffuse": [0.1, 0.6, 0.1], "specular": [1, 1, 1], "alpha":
+    /// 0.05, "ior": 1.5}') or a .json file holding one.
+    #[arg(long, value_name = "MATERIAL_JSON")]
+    pub blend_to: Option<String>,
+    /// Axis of the blend, x,y,z: the scene's material at the lowest vertex along it, the
+    /// --blend-to material at the highest.
+    #[arg(long, default_value = "0,1,0", allow_hyphen_values = true)]
+    pub blend_axis: String,
 }
 
-/// Parse a back-end name.
-pub fn parse_backend(s: Option<&str>) -> Result<Backend> {
-    Ok(match s {
-        None => Backend::available()[0],
-        Some("embree") => Backend::Embree,
-        Some("bvh") => Backend::Bvh,
-        Some(o) => bail!("unknown --backend '{o}' (embree, bvh)"),
-    })
+impl BlendArgs {
+    /// The blend, if `--blend-to` was given.
+    fn blend(&self) -> Result<Option<MaterialBlend>> {
+        let Some(s) = &self.blend_to else {
+            return Ok(None);
+        };
+        let (text, origin) = if s.trim_start().starts_with('{') {
+            (s.clone(), "--blend-to".to_string())
+        } else {
+            let text = std::fs::read_to_string(s).with_context(|| {
+                format!("--blend-to {s}: not inline JSON, and cannot read it as a file")
+            })?;
+            (text, s.clone())
+        };
+        let to: Material = serde_json::from_str(&text)
+            .with_context(|| format!("{origin}: not a valid material"))?;
+        to.validate()
+            .map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+        let axis = args::vec3(&self.blend_axis, "--blend-axis")?;
+        Ok(Some(MaterialBlend {
+            to,
+            axis: axis.into(),
+        }))
+    }
 }
 
-/// Bake a loaded scene.
-pub fn bake_scene(
-    desc: &SceneDesc,
-    scene: &Scene,
-    settings: &ShBakeSettings,
-    backend: Backend,
-    f16: bool,
-    origin: &Path,
-) -> Result<ShBake> {
-    let t0 = Instant::now();
-    let caster = accel::build(&scene.mesh, backend)
-        .map_err(|e| anyhow!("{}: cannot build the ray caster: {e}", origin.display()))?;
-    let transfer = sh::bake(&scene.mesh, &scene.materials, caster.as_ref(), settings)
-        .with_context(|| format!("baking {}", origin.display()))?;
-    let albedo = relight_bake::transport::vertex_albedo(&scene.mesh, &scene.materials);
-    let bounces = match settings.kind {
-        ShTransferKind::Interreflected { bounces } => bounces,
-        _ => 0,
-    };
-    Ok(ShBake {
-        scene: desc.clone(),
-        mesh: scene.mesh.clone(),
-        materials: scene.materials.clone(),
-        albedo,
-        transfer,
-        settings: RecordedSettings {
-            order: settings.order,
-            transfer: kind_name(settings.kind).into(),
-            bounces,
-            samples: settings.samples,
-            seed: settings.seed,
-            f16,
-            backend: caster.name().into(),
-            seconds: t0.elapsed().as_secs_f64(),
-        },
-    })
+/// Check the options against the method before any work.
+fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
+    let mut sg = arg_names::<SgBakeSettings>();
+    sg.extend(arg_names::<BlendArgs>());
+    refuse_foreign(
+        m,
+        a.method,
+        &[
+            (
+                &[MethodKind::Sh, MethodKind::Hybrid],
+                arg_names::<ShBakeSettings>(),
+            ),
+            (&[MethodKind::Sg], sg),
+        ],
+    )?;
+    if given(m, "bounces") {
+        match a.method {
+            MethodKind::Sh | MethodKind::Hybrid
+                if a.sh.transfer != ShTransferKind::Interreflected =>
+            {
+                bail!("--bounces applies to --transfer interreflected")
+            }
+            MethodKind::Sg if a.sg.indirect_lobes == 0 => {
+                bail!("--bounces applies to sg bakes with --indirect-lobes above 0")
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Run `relight bake`.
-pub fn run(a: Args) -> Result<()> {
-    if a.method == "sg" {
-        return crate::sg::run_bake(&a);
-    }
-    if a.method != "sh" {
-        bail!("unknown --method '{}' (sh, sg)", a.method);
-    }
-    let desc = SceneDesc::read(&a.scene)?;
-    let scene = desc.build(&a.scene)?;
-    let settings = ShBakeSettings {
-        order: a.order,
-        samples: a.samples,
-        seed: a.seed,
-        kind: parse_kind(&a.transfer, a.bounces)?,
-        threads: None,
+pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
+    check_options(&a, m)?;
+    args::check_outputs(&[&a.out], &["relight"], &[&a.scene])?;
+    let ctx = BakeContext {
+        backend: args::backend(a.backend.as_deref())?,
+        f16: a.f16,
         progress: true,
     };
-    settings.validate()?;
-    eprintln!(
-        "baking {} ({} vertices, {} triangles): SH order {}, {} transfer, {} samples",
+    let desc = SceneDesc::read(&a.scene)?;
+    let scene = desc.build(&a.scene)?;
+    let input = BakeInput {
+        desc: &desc,
+        scene: &scene,
+        origin: &a.scene,
+    };
+    let all = 0..scene.mesh.vertex_count();
+    let what = format!(
+        "baking {} ({} vertices, {} triangles)",
         a.scene.display(),
         scene.mesh.vertex_count(),
-        scene.mesh.triangle_count(),
-        a.order,
-        a.transfer,
-        a.samples
+        scene.mesh.triangle_count()
     );
-    let baked = bake_scene(
-        &desc,
-        &scene,
-        &settings,
-        parse_backend(a.backend.as_deref())?,
-        a.f16,
-        &a.scene,
-    )?;
-    baked.to_bundle()?.write(&a.out)?;
-    let size = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
-    println!(
-        "wrote {} ({:.2} MiB) in {:.2} s with {}",
-        a.out.display(),
-        size as f64 / (1 << 20) as f64,
-        baked.settings.seconds,
-        baked.settings.backend
-    );
+    let baked: Baked = match a.method.bake_kind() {
+        relight_method::BakeKind::Sh => {
+            let s = ShBakeSettings {
+                order: a.sh_order,
+                seed: a.seed,
+                bounces: match a.sh.transfer {
+                    ShTransferKind::Interreflected => a.bounces.unwrap_or(1),
+                    _ => 0,
+                },
+                ..a.sh
+            };
+            Sh::validate(&s)?;
+            eprintln!(
+                "{what}: SH order {}, {} transfer, {} samples",
+                s.order,
+                s.transfer.name(),
+                s.samples
+            );
+            Sh::bake(input, &s, all, &ctx)?.into()
+        }
+        relight_method::BakeKind::Sg => {
+            let s = SgSettings {
+                bake: SgBakeSettings {
+                    diffuse_order: a.sh_order,
+                    max_depth: a.bounces.unwrap_or(SgBakeSettings::default().max_depth),
+                    seed: a.seed,
+                    ..a.sg
+                },
+                blend: a.blend.blend()?,
+            };
+            Sg::validate(&s)?;
+            let b = &s.bake;
+            eprintln!(
+                "{what}: SG, {} views, {} direct + {} indirect lobes, cube maps 6x{r}x{r} / 6x{q}x{q}, diffuse SH order {}",
+                10 * relight_bake::sg::VIEW_FREQUENCY.pow(2) + 2,
+                b.direct_lobes,
+                b.indirect_lobes,
+                b.diffuse_order,
+                r = b.direct_res,
+                q = b.indirect_res,
+            );
+            Sg::bake(input, &s, all, &ctx)?.into()
+        }
+    };
+    baked.write(&a.out)?;
+    report(&a.out, &baked, out);
     Ok(())
+}
+
+/// Print what was written.
+fn report(path: &Path, baked: &Baked, out: &Out) {
+    let r = baked.record();
+    let v = baked.scene().mesh.vertex_count().max(1);
+    let size = args::mib(path);
+    out.line(format!(
+        "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}",
+        path.display(),
+        (size * (1 << 20) as f64) as usize / v,
+        r.seconds,
+        r.backend
+    ));
+    let mut extra = json!({});
+    if let Baked::Sg(sg) = baked {
+        let s = &sg.bake.stats;
+        out.line(format!(
+            "SG transfer: {} bytes per vertex as {}; fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
+            sg.transfer_bytes_per_vertex(),
+            if r.f16 { "f16" } else { "f32" },
+            s.mean_relative_error[0],
+            s.mean_relative_error[1],
+            s.iterations,
+            s.flips,
+            s.flips_after_relaxation
+        ));
+        extra = json!({
+            "transfer_bytes_per_vertex": sg.transfer_bytes_per_vertex(),
+            "fit_mean_relative_error": s.mean_relative_error,
+            "fit_iterations": s.iterations,
+            "flips": s.flips,
+            "flips_after_relaxation": s.flips_after_relaxation,
+        });
+    }
+    out.summary(json!({
+        "command": "bake",
+        "method": baked.kind().name(),
+        "out": path,
+        "bytes": std::fs::metadata(path).map_or(0, |m| m.len()),
+        "vertices": baked.scene().mesh.vertex_count(),
+        "triangles": baked.scene().mesh.triangle_count(),
+        "seconds": r.seconds,
+        "backend": r.backend,
+        "f16": r.f16,
+        "settings": serde_json::from_str::<serde_json::Value>(&baked.settings_json()).unwrap_or_default(),
+        "sg": extra,
+    }));
 }

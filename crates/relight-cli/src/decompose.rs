@@ -1,43 +1,39 @@
 //! `relight decompose ENV`: split an environment into a low-order SH part and a few cap lights
-//! (hybrid thesis 4.3, `relight_sphere::decompose`), print the lights and write a picture.
+//! (hybrid thesis 4.3), print the lights and write a picture. The extraction options and their
+//! defaults are those of `relight render --method hybrid`.
 
-use crate::common::{ext_of, parse_tonemap};
-use anyhow::{bail, Context, Result};
-use relight_render::text::draw_label;
-use relight_render::tonemap::ToneMap;
-use relight_scene::scene_file::parse_layout;
-use relight_sphere::decompose::{DecomposeSettings, Decomposer, Decomposition};
-use relight_sphere::{latlong, luminance, sh, EnvMap, Vec2, Vec3};
+use crate::args::{self, Out};
+use anyhow::{ensure, Context, Result};
+use relight_method::hybrid::LightExtraction;
+use relight_render::decompose_picture::{auto_tonemap, picture};
+use relight_sphere::decompose::{Decomposer, Decomposition};
+use relight_sphere::{luminance, sh, Vec3};
+use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `relight decompose`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Environment map (.hdr / .exr; latlong, vertical cross, stacked cube faces or probe).
+    /// Environment map (.hdr / .exr; latlong, vertical cross or angular probe).
     pub env: PathBuf,
     /// Layout (latlong, cube, probe); detected from the aspect ratio when absent.
     #[arg(long)]
     pub layout: Option<String>,
-    /// SH order n of the slowly varying part (n^2 coefficients).
-    #[arg(long, default_value_t = 3)]
+    /// SH order n of the slowly varying part (n^2 coefficients). Default 3 here; `render
+    /// --method hybrid` uses the bake's order unless given.
+    #[arg(long, visible_alias = "order", default_value_t = 3)]
     pub sh_order: usize,
-    /// Elbow threshold (thesis Fig. 4.5): keep a light while its luminance exceeds this
-    /// fraction of the running total.
-    #[arg(long, default_value_t = 0.05)]
-    pub threshold: f32,
-    /// Cap radius R of every light, degrees.
-    #[arg(long, default_value_t = 5.0)]
-    pub light_radius: f32,
-    /// At most this many lights.
-    #[arg(long, default_value_t = 8)]
-    pub max_lights: usize,
-    /// Keep the lights' energy in the SH part too (the thesis' behaviour, double counting).
+    /// How lights are extracted (same options and defaults as `render --method hybrid`).
+    #[command(flatten)]
+    pub lights: LightExtraction,
+    /// Keep the lights' energy in the SH part too (the thesis' behaviour, double counting;
+    /// `render --method hybrid --thesis`).
     #[arg(long)]
-    pub no_remove_caps: bool,
+    pub thesis: bool,
     /// Picture (.png): original, SH part, residual (env - SH), SH + lights as caps.
     #[arg(short, long)]
-    pub output: Option<PathBuf>,
+    pub out: Option<PathBuf>,
     /// Width of each latlong panel of the picture, pixels.
     #[arg(long, default_value_t = 512)]
     pub panel_width: usize,
@@ -48,55 +44,56 @@ pub struct Args {
 }
 
 /// Decompose, print the lights, write the picture.
-pub fn run(a: Args) -> Result<()> {
-    let settings = DecomposeSettings {
-        sh_order: a.sh_order,
-        threshold: a.threshold,
-        light_radius_deg: a.light_radius,
-        max_lights: a.max_lights,
-        remove_caps: !a.no_remove_caps,
-        ..Default::default()
-    };
-    settings
-        .validate()
-        .map_err(|e| anyhow::anyhow!("invalid option: {e}"))?;
-    if let Some(o) = &a.output {
-        if ext_of(o) != "png" {
-            bail!("{}: the picture must be a .png", o.display());
-        }
-        if !(16..=8192).contains(&a.panel_width) {
-            bail!("--panel-width {} is not in 16..=8192", a.panel_width);
-        }
+pub fn run(a: Args, out: &Out) -> Result<()> {
+    let settings = a.lights.decompose_settings(a.sh_order, !a.thesis)?;
+    if let Some(o) = &a.out {
+        args::check_outputs(&[o], &["png"], &[&a.env])?;
+        ensure!(
+            (16..=8192).contains(&a.panel_width),
+            "--panel-width {} is not in 16..=8192",
+            a.panel_width
+        );
     }
-    let tonemap = a.tonemap.as_deref().map(parse_tonemap).transpose()?;
-    let layout = match &a.layout {
-        Some(l) => Some(
-            parse_layout(l)
-                .with_context(|| format!("unknown layout '{l}' (latlong, cube, probe)"))?,
-        ),
-        None => None,
-    };
-    let map = relight_scene::io::load_env(&a.env, layout)?;
+    let tonemap = a.tonemap.as_deref().map(args::tonemap).transpose()?;
+    let map = relight_scene::io::load_env(&a.env, args::layout(a.layout.as_deref())?)?;
     let t0 = Instant::now();
     let dec = Decomposer::new(&settings, map.layout(), map.width(), map.height())
-        .with_context(|| format!("{}", a.env.display()))?;
+        .with_context(|| a.env.display().to_string())?;
     let t1 = Instant::now();
-    let d = dec
-        .run(&map)
-        .with_context(|| format!("{}", a.env.display()))?;
+    let d = dec.run(&map).with_context(|| a.env.display().to_string())?;
     let t2 = Instant::now();
-    print_report(
-        &a,
-        &map,
-        &d,
-        (t1 - t0).as_secs_f64(),
-        (t2 - t1).as_secs_f64(),
+    ensure!(
+        d.sh.iter().all(|c| c.is_finite()) && d.lights.iter().all(|l| l.power.is_finite()),
+        "{}: the decomposition overflows: the map's radiance is beyond f32",
+        a.env.display()
     );
-    if let Some(out) = &a.output {
+    out.line(format!(
+        "# decomposition of {} ({:?} {} x {}): SH order {}, cap radius {} deg, threshold {}, {}",
+        a.env.display(),
+        map.layout(),
+        map.width(),
+        map.height(),
+        a.sh_order,
+        a.lights.light_radius,
+        a.lights.threshold,
+        if a.thesis {
+            "caps kept in the SH part (thesis)"
+        } else {
+            "caps removed from the SH part"
+        }
+    ));
+    let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
+    out.line(format!(
+        "# tables {:.1} ms, decomposition {:.2} ms",
+        ms(t0, t1),
+        ms(t1, t2)
+    ));
+    report(&a, &d, out);
+    if let Some(o) = &a.out {
         let tm = tonemap.unwrap_or_else(|| auto_tonemap(&map));
-        let (w, px) = picture(&map, &d, a.panel_width, &tm);
-        relight_scene::io::write_png_srgb8(out, w, px.len() / w, &px)?;
-        println!("wrote {}", out.display());
+        let px = picture(&map, &d, a.panel_width, &tm);
+        relight_scene::io::write_png_srgb8(o, a.panel_width, px.len() / a.panel_width, &px)?;
+        out.line(format!("wrote {}", o.display()));
     }
     Ok(())
 }
@@ -108,106 +105,44 @@ fn elevation_azimuth(d: Vec3) -> (f32, f32) {
     (el, az)
 }
 
-fn print_report(a: &Args, map: &EnvMap, d: &Decomposition, build_s: f64, run_s: f64) {
-    println!(
-        "# decomposition of {} ({:?} {} x {}): SH order {}, cap radius {} deg, threshold {}, {}",
-        a.env.display(),
-        map.layout(),
-        map.width(),
-        map.height(),
-        a.sh_order,
-        a.light_radius,
-        a.threshold,
-        if a.no_remove_caps {
-            "caps kept in the SH part (thesis)"
-        } else {
-            "caps removed from the SH part"
-        }
-    );
-    println!(
-        "# tables {:.1} ms, decomposition {:.2} ms",
-        build_s * 1e3,
-        run_s * 1e3
-    );
-    println!(
-        "#  i    dir x    dir y    dir z  elev(deg)  azim(deg)   power r      power g      power b    share%  size(deg)"
-    );
+fn report(a: &Args, d: &Decomposition, out: &Out) {
+    out.line("#  i    dir x    dir y    dir z  elev(deg)  azim(deg)   power r      power g      power b    share%  size(deg)");
+    let mut lights = vec![];
     for (i, l) in d.lights.iter().enumerate() {
         let (el, az) = elevation_azimuth(l.dir);
-        println!(
-            "{i:4} {:8.4} {:8.4} {:8.4} {el:10.2} {az:10.2} {:12.5e} {:12.5e} {:12.5e} {:8.2} {:10.2}",
-            l.dir.x,
-            l.dir.y,
-            l.dir.z,
-            l.power.x,
-            l.power.y,
-            l.power.z,
-            100.0 * l.luminance / d.total_luminance.max(f32::MIN_POSITIVE),
-            l.extent.to_degrees()
-        );
+        let share = 100.0 * l.luminance / d.total_luminance.max(f32::MIN_POSITIVE);
+        out.line(format!(
+            "{i:4} {:8.4} {:8.4} {:8.4} {el:10.2} {az:10.2} {:12.5e} {:12.5e} {:12.5e} {share:8.2} {:10.2}",
+            l.dir.x, l.dir.y, l.dir.z, l.power.x, l.power.y, l.power.z, l.extent.to_degrees()
+        ));
+        lights.push(json!({"dir": l.dir.to_array(), "elevation_deg": el, "azimuth_deg": az,
+            "power": l.power.to_array(), "share_percent": share, "size_deg": l.extent.to_degrees()}));
     }
     if d.lights.is_empty() {
-        println!("# no lights (nothing stands out of the SH part)");
+        out.line("# no lights (nothing stands out of the SH part)");
     }
-    println!("# SH part (real orthonormal, R&H 2001 basis on world x, y, z):  l  m  r g b");
+    out.line("# SH part (real orthonormal, R&H 2001 basis on world x, y, z):  l  m  r g b");
     for l in 0..a.sh_order as i32 {
         for m in -l..=l {
             let v = d.sh[sh::sh_index(l, m)];
-            println!("# {l:3} {m:3} {:12.6} {:12.6} {:12.6}", v.x, v.y, v.z);
+            out.line(format!(
+                "# {l:3} {m:3} {:12.6} {:12.6} {:12.6}",
+                v.x, v.y, v.z
+            ));
         }
     }
     let sh0 = d.sh[0] * (4.0 * std::f32::consts::PI).sqrt();
-    let lights: Vec3 = d.lights.iter().map(|l| l.power).sum();
-    println!(
+    let power: Vec3 = d.lights.iter().map(|l| l.power).sum();
+    out.line(format!(
         "# energy (luminance of int L dw): env {:.5e}, SH part {:.5e}, lights {:.5e}, double counted {:.5e}",
         d.total_luminance,
         luminance(sh0),
-        luminance(lights),
+        luminance(power),
         luminance(d.double_counted())
-    );
-}
-
-/// Reinhard with the exposure that maps the map's mean luminance to 0.5.
-fn auto_tonemap(map: &EnvMap) -> ToneMap {
-    let mean = map.average_luminance();
-    ToneMap::Reinhard {
-        exposure: if mean > 0.0 { 1.0 / mean } else { 1.0 },
-    }
-}
-
-/// Four latlong panels stacked: original, SH part, residual (env - SH, negative parts
-/// black), SH + lights as caps with their outlines. Returns the width and the pixels.
-fn picture(map: &EnvMap, d: &Decomposition, w: usize, tm: &ToneMap) -> (usize, Vec<[u8; 3]>) {
-    let h = w / 2;
-    let mut px = vec![[0u8; 3]; w * 4 * h];
-    let pixel_angle = std::f32::consts::PI / h as f32;
-    let labels = [
-        "environment",
-        "SH part",
-        "residual (environment - SH)",
-        "SH part + lights",
-    ];
-    for j in 0..h {
-        for i in 0..w {
-            let uv = Vec2::new((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
-            let dir = latlong::uv_to_dir(uv);
-            let env = map.eval(dir);
-            let shv = sh::eval_rgb(&d.sh, dir);
-            let panels = [env, shv, env - shv, d.radiance(dir)];
-            for (k, v) in panels.iter().enumerate() {
-                px[(k * h + j) * w + i] = tm.pixel_srgb8(*v);
-            }
-            // Cap outlines and centres on the last panel.
-            for l in &d.lights {
-                let a = l.dir.dot(dir).clamp(-1.0, 1.0).acos();
-                if (a - l.cap_radius).abs() < pixel_angle || a < 1.5 * pixel_angle {
-                    px[(3 * h + j) * w + i] = [255, 0, 255];
-                }
-            }
-        }
-    }
-    for (k, text) in labels.iter().enumerate() {
-        draw_label(&mut px, w, 4, k * h + 4, 1 + w / 512, text);
-    }
-    (w, px)
+    ));
+    out.summary(json!({
+        "command": "decompose", "env": a.env, "sh_order": a.sh_order, "lights": lights,
+        "sh": d.sh.iter().map(|c| c.to_array()).collect::<Vec<_>>(),
+        "total_luminance": d.total_luminance, "picture": a.out,
+    }));
 }

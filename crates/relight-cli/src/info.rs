@@ -1,8 +1,12 @@
-//! `relight info` (describe a bundle) and `relight project` (SH coefficients of an environment).
+//! `relight info` (describe and check a bundle) and `relight project` (SH coefficients of an
+//! environment).
 
-use anyhow::{Context, Result};
+use crate::args::{self, Out};
+use anyhow::{ensure, Result};
 use relight_bundle::Bundle;
+use relight_method::{from_bundle, Baked};
 use relight_sphere::sh;
+use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `relight info`.
@@ -12,73 +16,102 @@ pub struct Args {
     pub bundle: PathBuf,
 }
 
-/// Print the bundle's metadata and tensors.
-pub fn run(a: Args) -> Result<()> {
+/// Print the bundle's metadata and tensors, after checking its checksums and its contents
+/// (the same checks as every reader: `info` never says OK for a bundle `render` refuses).
+pub fn run(a: Args, out: &Out) -> Result<()> {
     let b = Bundle::read(&a.bundle)?;
-    let size = std::fs::metadata(&a.bundle).map(|m| m.len()).unwrap_or(0);
-    println!(
-        "{}: relight bundle, format version {}, {:.2} MiB, checksums OK",
+    let baked = from_bundle(&b, &a.bundle)?;
+    out.line(format!(
+        "{}: relight bundle, format version {}, {:.2} MiB, checksums and contents OK",
         a.bundle.display(),
         relight_bundle::FORMAT_VERSION,
-        size as f64 / (1 << 20) as f64
-    );
+        args::mib(&a.bundle)
+    ));
     for (k, v) in &b.metadata {
-        if v.len() > 200 {
-            println!(
-                "  {k}: {}... ({} chars)",
-                &v[..v.char_indices().nth(200).map_or(v.len(), |c| c.0)],
-                v.len()
-            );
-        } else {
-            println!("  {k}: {v}");
-        }
+        let short = match v.char_indices().nth(200) {
+            Some((i, _)) => format!("{}... ({} chars)", &v[..i], v.len()),
+            None => v.clone(),
+        };
+        out.line(format!("  {k}: {short}"));
     }
-    println!("  tensors:");
+    out.line("  tensors:");
     for (name, t) in &b.tensors {
-        println!(
-            "    {name:<16} {:<4} {:?} ({} bytes)",
+        out.line(format!(
+            "    {name:<18} {:<4} {:?} ({} bytes)",
             t.dtype.name(),
             t.shape,
             t.bytes.len()
-        );
+        ));
     }
-    if b.metadata.get("method").map(String::as_str) == Some("sg") {
-        describe_sg(&a.bundle, &b)?;
+    let methods: Vec<&str> = baked.kind().methods().iter().map(|m| m.name()).collect();
+    out.line(format!("  renders with --method {}", methods.join(", ")));
+    let mut sg_json = json!(null);
+    if let Baked::Sg(sg) = &baked {
+        let (s, k) = (&sg.settings.bake, &sg.bake);
+        let v = sg.scene.mesh.vertex_count().max(1);
+        let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
+        let distinct = k
+            .materials
+            .iter()
+            .map(|m| format!("{m:?}"))
+            .collect::<std::collections::BTreeSet<_>>();
+        let st = &k.stats;
+        out.line("  SG (Green 2005 view-dependent glossy PRT):");
+        out.line(format!(
+            "    {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
+            k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
+        ));
+        out.line(format!(
+            "    bytes per vertex: {} transfer (lobes + diffuse SH, {}), {} all tensors",
+            sg.transfer_bytes_per_vertex(),
+            if sg.record.f16 { "f16" } else { "f32" },
+            tensor_bytes / v
+        ));
+        let blend = sg.settings.blend.as_ref().map_or(String::new(), |b| {
+            format!(" (blend to {:?} along {})", b.to, b.axis)
+        });
+        out.line(format!(
+            "    {} distinct per-vertex materials{blend}",
+            distinct.len()
+        ));
+        out.line(format!(
+            "    fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} iterations; flips {} -> {} after relaxation",
+            st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
+        ));
+        sg_json = json!({
+            "views": k.direct.view_count,
+            "transfer_bytes_per_vertex": sg.transfer_bytes_per_vertex(),
+            "distinct_materials": distinct.len(),
+            "fit_mean_relative_error": st.mean_relative_error,
+            "flips": st.flips,
+            "flips_after_relaxation": st.flips_after_relaxation,
+        });
     }
-    Ok(())
-}
-
-/// The SG part of `relight info`: views, lobes, storage per vertex, fit statistics.
-fn describe_sg(path: &std::path::Path, b: &Bundle) -> Result<()> {
-    let sg = crate::store::SgBundle::from_bundle(path, b)?;
-    let (s, k) = (&sg.settings, &sg.bake);
-    let v = sg.mesh.vertex_count().max(1);
-    let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
-    println!("  SG (Green 2005 view-dependent glossy PRT):");
-    println!(
-        "    {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
-        k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
-    );
-    println!(
-        "    bytes per vertex: {} transfer (lobes + diffuse SH, {}), {} all tensors",
-        sg.transfer_bytes_per_vertex(),
-        if s.f16 { "f16" } else { "f32" },
-        tensor_bytes / v
-    );
-    let distinct: std::collections::BTreeSet<String> =
-        k.materials.iter().map(|m| format!("{m:?}")).collect();
-    println!(
-        "    {} distinct per-vertex materials{}",
-        distinct.len(),
-        s.blend
-            .as_ref()
-            .map_or(String::new(), |b| format!(" (blend to {b})"))
-    );
-    let st = &k.stats;
-    println!(
-        "    fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} iterations; flips {} -> {} after relaxation",
-        st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
-    );
+    let tensors: serde_json::Map<String, serde_json::Value> = b
+        .tensors
+        .iter()
+        .map(|(n, t)| {
+            (
+                n.clone(),
+                json!({"dtype": t.dtype.name(), "shape": t.shape, "bytes": t.bytes.len()}),
+            )
+        })
+        .collect();
+    out.summary(json!({
+        "command": "info",
+        "bundle": a.bundle,
+        "format_version": relight_bundle::FORMAT_VERSION,
+        "bytes": std::fs::metadata(&a.bundle).map_or(0, |m| m.len()),
+        "valid": true,
+        "method": baked.kind().name(),
+        "renders_with": methods,
+        "vertices": baked.scene().mesh.vertex_count(),
+        "triangles": baked.scene().mesh.triangle_count(),
+        "record": baked.record(),
+        "metadata": b.metadata,
+        "tensors": tensors,
+        "sg": sg_json,
+    }));
     Ok(())
 }
 
@@ -88,41 +121,48 @@ pub struct ProjectArgs {
     /// Environment map (.hdr / .exr; latlong, vertical cross or angular probe).
     pub env: PathBuf,
     /// SH order n (n^2 coefficients).
-    #[arg(long, default_value_t = 3)]
-    pub order: usize,
+    #[arg(long, visible_alias = "order", default_value_t = 3)]
+    pub sh_order: usize,
     /// Layout (latlong, cube, probe); detected from the aspect ratio when absent.
     #[arg(long)]
     pub layout: Option<String>,
 }
 
 /// Print the SH projection of an environment.
-pub fn project(a: ProjectArgs) -> Result<()> {
-    anyhow::ensure!(
-        (1..=sh::MAX_ORDER).contains(&a.order),
-        "--order {} is not in 1..={}",
-        a.order,
+pub fn project(a: ProjectArgs, out: &Out) -> Result<()> {
+    ensure!(
+        (1..=sh::MAX_ORDER).contains(&a.sh_order),
+        "--sh-order {} is not in 1..={}",
+        a.sh_order,
         sh::MAX_ORDER
     );
-    let layout = match &a.layout {
-        Some(l) => Some(
-            relight_scene::scene_file::parse_layout(l)
-                .with_context(|| format!("unknown layout '{l}' (latlong, cube, probe)"))?,
-        ),
-        None => None,
-    };
-    let map = relight_scene::io::load_env(&a.env, layout)?;
-    let c = sh::project_env(&map, a.order);
-    println!(
+    let map = relight_scene::io::load_env(&a.env, args::layout(a.layout.as_deref())?)?;
+    let c = sh::project_env(&map, a.sh_order);
+    if let Some(i) = c.iter().position(|v| !v.is_finite()) {
+        anyhow::bail!(
+            "{}: the projection overflows (coefficient {i} is not finite): the map's radiance is beyond f32",
+            a.env.display()
+        );
+    }
+    out.line(format!(
         "# SH projection of {} (order {}, real orthonormal, R&H 2001 basis on world x,y,z)",
         a.env.display(),
-        a.order
-    );
-    println!("# l  m        r            g            b");
-    for l in 0..a.order as i32 {
+        a.sh_order
+    ));
+    out.line("# l  m        r            g            b");
+    let mut rows = vec![];
+    for l in 0..a.sh_order as i32 {
         for m in -l..=l {
             let v = c[sh::sh_index(l, m)];
-            println!("{l:3} {m:3} {:12.6} {:12.6} {:12.6}", v.x, v.y, v.z);
+            out.line(format!(
+                "{l:3} {m:3} {:12.6} {:12.6} {:12.6}",
+                v.x, v.y, v.z
+            ));
+            rows.push(json!({"l": l, "m": m, "rgb": v.to_array()}));
         }
     }
+    out.summary(
+        json!({"command": "project", "env": a.env, "sh_order": a.sh_order, "coefficients": rows}),
+    );
     Ok(())
 }

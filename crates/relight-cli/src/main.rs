@@ -1,42 +1,44 @@
 //! `relight`: bake a static scene once, then relight it under any environment.
 //!
-//! Every subcommand lives in its own module; errors are reported with the file and the
-//! problem, and a non-zero exit status.
+//! The binary only parses arguments and prints: every verb calls `relight-method` (bake,
+//! bundles, frames) or `relight-eval` (experiments, demo, benchmarks). Errors are reported
+//! with the file and the problem, and a non-zero exit status; `--json` prints one summary
+//! object on stdout instead of the human report.
 
+mod args;
 mod bake;
-mod bench;
-mod common;
 mod compare;
 mod decompose;
-mod demo;
 mod eval;
-mod eval_hybrid;
-mod eval_sg;
-mod eval_sg_basis;
-mod hybrid;
 mod info;
 mod reference;
 mod render;
-mod sg;
-mod store;
 
-use clap::{Parser, Subcommand};
+use anyhow::{ensure, Result};
+use args::Out;
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use std::path::PathBuf;
 
 /// relight: precomputed light transport. Bake once, relight in real time.
 #[derive(Parser)]
 #[command(name = "relight", version, about, long_about = None)]
 struct Cli {
-    /// Worker threads (default: all cores).
+    /// Worker threads, 1 to 8 x the cores (default: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Print one JSON summary on stdout (what was done, timings, output paths) instead of
+    /// the human report; progress and messages stay on stderr.
+    #[arg(long, global = true)]
+    json: bool,
     #[command(subcommand)]
     cmd: Cmd,
 }
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run the built-in demo (no downloads): bake, relight, path-trace, compare, report.
-    Demo(demo::Args),
+    /// Run the built-in demo (no downloads): every method baked, relit and compared with the
+    /// path tracer; writes a contact sheet and an HTML report.
+    Demo(DemoArgs),
     /// Bake a scene description (JSON) into a bundle.
     Bake(bake::Args),
     /// Render a baked bundle under an environment (no re-baking).
@@ -45,18 +47,63 @@ enum Cmd {
     Reference(reference::Args),
     /// Export a scene for Mitsuba 3 (see tools/mitsuba_reference.py).
     ExportMitsuba(reference::ExportArgs),
-    /// Evaluate a method against Mitsuba 3 ground truth (error per SH order).
+    /// Evaluate a method against Mitsuba 3 ground truth.
     Eval(eval::Args),
     /// Split an environment into low-order SH plus directional cap lights (hybrid, thesis 4.3).
     Decompose(decompose::Args),
     /// Compare two images (EXR/HDR): RMSE, relative RMSE, PSNR, luminance error, heat map.
     Compare(compare::Args),
-    /// Describe a baked bundle.
+    /// Describe and check a baked bundle.
     Info(info::Args),
     /// Print SH coefficients of an environment map.
     Project(info::ProjectArgs),
-    /// Benchmarks: ray throughput vs Embree, bake overhead, relight vs memory bandwidth.
-    Bench(bench::Args),
+    /// Benchmarks, each against a baseline measured in the same run.
+    Bench(BenchArgs),
+}
+
+/// Arguments of `relight demo`.
+#[derive(clap::Args)]
+struct DemoArgs {
+    /// Output folder.
+    #[arg(short, long, default_value = "out/demo")]
+    out: PathBuf,
+    /// Image width (height is 3/4 of it), 16..=4096.
+    #[arg(long, default_value_t = 320)]
+    width: u32,
+    /// Path-tracer samples per pixel of the references.
+    #[arg(long, default_value_t = 256)]
+    spp: u32,
+    /// SH order of the sh bake.
+    #[arg(long, visible_alias = "order", default_value_t = 6)]
+    sh_order: usize,
+    /// Directions per vertex of the sh bake.
+    #[arg(long, default_value_t = 1024)]
+    samples: u32,
+}
+
+/// Arguments of `relight bench`.
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Rays per throughput measurement.
+    #[arg(long, default_value_t = 2_000_000)]
+    rays: usize,
+    /// Mesh for the ray benchmark (default: <data>/data/meshes/dragon.obj, else a procedural
+    /// 100K-triangle sphere).
+    #[arg(long)]
+    ray_mesh: Option<PathBuf>,
+    /// Mesh for the bake benchmark (default: <data>/data/meshes/bunny_watertight.obj, else a
+    /// procedural sphere on a plane).
+    #[arg(long)]
+    bake_mesh: Option<PathBuf>,
+    /// The shared data folder (default: $RELIGHT_SHARED).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Vertices of the relight benchmark.
+    #[arg(long, default_value_t = 1_000_000)]
+    relight_vertices: usize,
+    /// Fewer rays and samples (a quick smoke run).
+    #[arg(long)]
+    quick: bool,
 }
 
 /// Restore the default SIGPIPE action, so `relight ... | head` ends quietly like other Unix
@@ -74,32 +121,91 @@ fn default_sigpipe() {
     }
 }
 
+/// Most worker threads accepted, per core: more only adds start-up time and memory.
+const MAX_THREADS_PER_CORE: usize = 8;
+
+fn set_threads(t: usize) -> Result<()> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    ensure!(
+        (1..=MAX_THREADS_PER_CORE * cores).contains(&t),
+        "--threads {t} is not in 1..={} ({MAX_THREADS_PER_CORE} x the {cores} cores)",
+        MAX_THREADS_PER_CORE * cores
+    );
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(t)
+        .build_global()
+        .map_err(|e| anyhow::anyhow!("--threads {t}: {e}"))
+}
+
+fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
+    if let Some(t) = cli.threads {
+        set_threads(t)?;
+    }
+    let out = Out { json: cli.json };
+    let sub = m.subcommand().map(|(_, s)| s).expect("a subcommand");
+    match cli.cmd {
+        Cmd::Demo(a) => {
+            ensure!(
+                (16..=4096).contains(&a.width),
+                "--width {} is not in 16..=4096",
+                a.width
+            );
+            ensure!(a.spp >= 1, "--spp must be at least 1");
+            let (sheet, report) = relight_eval::demo::run(&relight_eval::demo::DemoOptions {
+                out: a.out,
+                width: a.width,
+                spp: a.spp,
+                sh_order: a.sh_order,
+                samples: a.samples,
+            })?;
+            out.line(format!("contact sheet: {}", sheet.display()));
+            out.line(format!("report:        {}", report.display()));
+            out.summary(
+                serde_json::json!({"command": "demo", "contact_sheet": sheet, "report": report}),
+            );
+        }
+        Cmd::Bake(a) => bake::run(a, sub, &out)?,
+        Cmd::Render(a) => render::run(a, sub, &out)?,
+        Cmd::Reference(a) => reference::run(a, &out)?,
+        Cmd::ExportMitsuba(a) => reference::export(a, &out)?,
+        Cmd::Eval(a) => eval::run(a, sub)?,
+        Cmd::Decompose(a) => decompose::run(a, &out)?,
+        Cmd::Compare(a) => compare::run(a, &out)?,
+        Cmd::Info(a) => info::run(a, &out)?,
+        Cmd::Project(a) => info::project(a, &out)?,
+        Cmd::Bench(a) => {
+            let r = relight_eval::bench::run(&relight_eval::bench::BenchOptions {
+                rays: a.rays,
+                ray_mesh: a.ray_mesh,
+                bake_mesh: a.bake_mesh,
+                data: a
+                    .data
+                    .or_else(|| std::env::var_os("RELIGHT_SHARED").map(PathBuf::from)),
+                relight_vertices: a.relight_vertices,
+                quick: a.quick,
+            })?;
+            out.line(format!(
+                "# relight bench ({} threads, {})",
+                r.threads, r.arch
+            ));
+            for s in &r.sections {
+                out.line(format!("\n{}", s.markdown()));
+            }
+            out.summary(serde_json::to_value(&r)?);
+        }
+    }
+    Ok(())
+}
+
 fn main() {
     #[cfg(unix)]
     default_sigpipe();
-    let cli = Cli::parse();
-    if let Some(t) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(t.max(1))
-            .build_global()
-        {
-            eprintln!("relight: warning: --threads ignored: {e}");
-        }
-    }
-    let result = match cli.cmd {
-        Cmd::Demo(a) => demo::run(a),
-        Cmd::Bake(a) => bake::run(a),
-        Cmd::Render(a) => render::run(a),
-        Cmd::Reference(a) => reference::run(a),
-        Cmd::ExportMitsuba(a) => reference::export(a),
-        Cmd::Eval(a) => eval::run(a),
-        Cmd::Decompose(a) => decompose::run(a),
-        Cmd::Compare(a) => compare::run(a),
-        Cmd::Info(a) => info::run(a),
-        Cmd::Project(a) => info::project(a),
-        Cmd::Bench(a) => bench::run(a),
+    let m = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&m) {
+        Ok(c) => c,
+        Err(e) => e.exit(),
     };
-    if let Err(e) = result {
+    if let Err(e) = run(cli, &m) {
         eprintln!("relight: error: {e:#}");
         std::process::exit(1);
     }

@@ -1,9 +1,11 @@
 //! `relight reference` (path-traced ground truth) and `relight export-mitsuba`.
 
-use crate::common::{parse_tonemap, write_image};
-use anyhow::{anyhow, Result};
+use crate::args::{self, Out};
+use anyhow::{anyhow, ensure, Result};
 use relight_render::pathtrace::{self, PtSettings};
+use relight_render::write_image;
 use relight_scene::scene_file::SceneDesc;
+use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -15,51 +17,57 @@ pub struct Args {
     /// Output images (.exr, .hdr, .png); repeat for several.
     #[arg(short, long, required = true)]
     pub out: Vec<PathBuf>,
-    /// Samples per pixel.
+    /// Samples per pixel (at least 1).
     #[arg(long, default_value_t = 256)]
     pub spp: u32,
     /// Longest path, Mitsuba semantics: 2 = direct only, 3 = one indirect bounce, -1 = unlimited.
-    #[arg(long, default_value_t = -1, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
     pub max_depth: i32,
     /// Random seed (deterministic for a seed).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Show black instead of the environment behind the objects.
+    /// Draw the environment behind the objects (as `render --background`; black without).
     #[arg(long)]
-    pub no_background: bool,
+    pub background: bool,
     /// Tone map for PNG outputs.
     #[arg(long, default_value = "exp:1")]
     pub tonemap: String,
 }
 
 /// Run `relight reference`.
-pub fn run(a: Args) -> Result<()> {
-    let tm = parse_tonemap(&a.tonemap)?;
+pub fn run(a: Args, out: &Out) -> Result<()> {
+    let tm = args::tonemap(&a.tonemap)?;
+    ensure!(a.spp >= 1, "--spp must be at least 1");
+    ensure!(
+        a.max_depth >= -1,
+        "--max-depth {} is not -1 (unlimited) or >= 0",
+        a.max_depth
+    );
+    args::check_image_outputs(&a.out, &[&a.scene])?;
     let desc = SceneDesc::read(&a.scene)?;
     let scene = desc.build(&a.scene)?;
     let t0 = Instant::now();
-    let caster = relight_scene::accel::build(&scene.mesh, crate::bake::parse_backend(None)?)
+    let caster = relight_scene::accel::build(&scene.mesh, args::backend(None)?)
         .map_err(|e| anyhow!("{}: {e}", a.scene.display()))?;
     let s = PtSettings {
-        spp: a.spp.max(1),
+        spp: a.spp,
         max_depth: a.max_depth,
         seed: a.seed,
         threads: None,
-        show_background: !a.no_background,
+        show_background: a.background,
         progress: true,
     };
     let img = pathtrace::render(&scene, caster.as_ref(), &s);
     for o in &a.out {
         write_image(o, &img, &tm)?;
-        println!("wrote {}", o.display());
+        out.line(format!("wrote {}", o.display()));
     }
-    println!(
-        "path traced {}x{} at {} spp in {:.2} s",
-        img.width,
-        img.height,
-        s.spp,
-        t0.elapsed().as_secs_f64()
-    );
+    let secs = t0.elapsed().as_secs_f64();
+    out.line(format!(
+        "path traced {}x{} at {} spp in {secs:.2} s",
+        img.width, img.height, s.spp
+    ));
+    out.summary(json!({"command": "reference", "scene": a.scene, "outputs": a.out, "spp": a.spp, "max_depth": a.max_depth, "seconds": secs}));
     Ok(())
 }
 
@@ -69,26 +77,28 @@ pub struct ExportArgs {
     /// Scene description (JSON).
     pub scene: PathBuf,
     /// Output folder (PLY meshes, EXR environment, scene.json for tools/mitsuba_reference.py).
-    pub dir: PathBuf,
+    #[arg(short, long)]
+    pub out: PathBuf,
     /// Samples per pixel for Mitsuba.
     #[arg(long, default_value_t = 256)]
     pub spp: u32,
     /// Mitsuba max_depth (2 = direct only, -1 = unlimited).
-    #[arg(long, default_value_t = -1, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
     pub max_depth: i32,
 }
 
 /// Run `relight export-mitsuba`.
-pub fn export(a: ExportArgs) -> Result<()> {
+pub fn export(a: ExportArgs, out: &Out) -> Result<()> {
     let desc = SceneDesc::read(&a.scene)?;
     let scene = desc.build(&a.scene)?;
-    std::fs::create_dir_all(&a.dir).map_err(|e| anyhow!("{}: {e}", a.dir.display()))?;
-    let json = relight_render::mitsuba::export_mitsuba(&scene, &a.dir, a.spp, a.max_depth)
-        .map_err(|e| anyhow!("exporting to {}: {e}", a.dir.display()))?;
-    println!("wrote {}", json.display());
-    println!(
+    std::fs::create_dir_all(&a.out).map_err(|e| anyhow!("{}: {e}", a.out.display()))?;
+    let json = relight_render::mitsuba::export_mitsuba(&scene, &a.out, a.spp, a.max_depth)
+        .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
+    out.line(format!("wrote {}", json.display()));
+    out.line(format!(
         "render it with: python tools/mitsuba_reference.py {} out.exr",
         json.display()
-    );
+    ));
+    out.summary(serde_json::json!({"command": "export-mitsuba", "scene_json": json}));
     Ok(())
 }

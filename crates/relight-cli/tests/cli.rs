@@ -114,7 +114,9 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
     assert!(o.status.success());
     let s = String::from_utf8_lossy(&o.stdout);
     assert!(
-        s.contains("method: sh") && s.contains("transfer") && s.contains("checksums OK"),
+        s.contains("method: sh")
+            && s.contains("transfer")
+            && s.contains("checksums and contents OK"),
         "{s}"
     );
 }

@@ -11,19 +11,25 @@
 //!   own Table 5.1 found its hybrid worse than SH-only on 4 of 5 probes.
 
 mod common;
-use std::process::Command;
 
 #[test]
 fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
     if !common::can_evaluate() {
         return;
     }
-    let out = std::env::temp_dir().join(format!("relight-eval-hybrid-{}", std::process::id()));
-    let o = Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args([
+    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let cwd = common::tmpdir("eval", "hybrid");
+    let out = cwd.join("out");
+    let o = common::relight_in(
+        &cwd,
+        &[
             "eval",
             "--method",
             "hybrid",
+            "--examples",
+            common::examples().to_str().unwrap(),
+            "--data",
+            shared.to_str().unwrap(),
             "--samples",
             "256",
             "--spp",
@@ -32,11 +38,10 @@ fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
             "128",
             "--shadow-map-size",
             "1024",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let rows: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();

@@ -12,40 +12,40 @@
 //!   256 spp, 512 directions the teapot under St Peter's measures 5.6 % against a 4.3 % noise
 //!   floor (docs/RESULTS.md has the full table).
 
-use std::process::Command;
+mod common;
 
 #[test]
 fn sh_prt_error_per_order_against_mitsuba() {
-    let Some(shared) = relight_scene::testdata::shared_dir() else {
-        eprintln!("SKIP: ../shared not present");
-        return;
-    };
-    if let Err(e) = relight_render::mitsuba::mitsuba_python() {
-        eprintln!("SKIP: Mitsuba 3 not available: {e}");
+    if !common::can_evaluate() {
         return;
     }
-    let ex = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
-    let out = std::env::temp_dir().join(format!("relight-eval-test-{}", std::process::id()));
+    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let ex = common::examples();
+    // Run from an empty folder with absolute paths, as an installed binary would be: the
+    // Mitsuba script is part of the binary, not read from the build tree.
+    let cwd = common::tmpdir("eval", "sh");
+    let out = cwd.join("out");
     let run = |scene: &str, env: &str| {
-        let o = Command::new(env!("CARGO_BIN_EXE_relight"))
-            .args(["eval", ex.join(scene).to_str().unwrap(), "--env"])
-            .arg(shared.join(env))
-            .args([
-                "--min-order",
-                "2",
-                "--max-order",
-                "10",
+        let env = shared.join(env);
+        let o = common::relight_in(
+            &cwd,
+            &[
+                "eval",
+                ex.join(scene).to_str().unwrap(),
+                "--env",
+                env.to_str().unwrap(),
+                "--sh-orders",
+                "2-10",
                 "--samples",
                 "256",
                 "--spp",
                 "64",
                 "--width",
                 "96",
-                "--out",
-            ])
-            .arg(&out)
-            .output()
-            .unwrap();
+                "-o",
+                out.to_str().unwrap(),
+            ],
+        );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let rows: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();

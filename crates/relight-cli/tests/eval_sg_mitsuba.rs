@@ -15,7 +15,6 @@
 //!   blocks.
 
 mod common;
-use std::process::Command;
 
 /// Relative RMSE bound of Fig. 3-4 at 64 spp, 96 pixels wide.
 const TOL_34: f64 = 0.30;
@@ -25,23 +24,26 @@ fn sg_renders_match_mitsuba_and_beat_environment_mapping_in_shadow() {
     if !common::can_evaluate() {
         return;
     }
-    let out = std::env::temp_dir().join(format!("relight-eval-sg-{}", std::process::id()));
-    let o = Command::new(env!("CARGO_BIN_EXE_relight"))
-        .args([
+    let cwd = common::tmpdir("eval", "sg");
+    let out = cwd.join("out");
+    let o = common::relight_in(
+        &cwd,
+        &[
             "eval",
             "--method",
             "sg",
+            "--examples",
+            common::examples().to_str().unwrap(),
             "--spp",
             "64",
             "--width",
             "96",
             "--indirect-paths",
             "16",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let rows: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
@@ -68,5 +70,5 @@ fn sg_renders_match_mitsuba_and_beat_environment_mapping_in_shadow() {
             assert!(e < b, "SG {e} not better than environment mapping {b}");
         }
     }
-    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&cwd);
 }

@@ -41,7 +41,7 @@ fn bake_sg(scene: &Path, bundle: &Path, extra: &[&str]) -> Output {
         "4",
         "--indirect-paths",
         "4",
-        "--diffuse-order",
+        "--sh-order",
         "3",
         "--fit-iterations",
         "5",
@@ -107,8 +107,8 @@ fn help_lists_every_sg_setting_with_its_default() {
         "--direct-res",
         "--indirect-res",
         "--indirect-paths",
-        "--max-depth",
-        "--diffuse-order",
+        "--bounces",
+        "--sh-order",
         "--horizon-deg",
         "--direct-lobes",
         "--indirect-lobes",
@@ -168,7 +168,7 @@ fn bad_sg_settings_and_bundles_are_refused_before_any_work() {
         "-o",
         img.to_str().unwrap(),
     ]);
-    assert_clean_failure(&o, "is not 'sg'", &img);
+    assert_clean_failure(&o, "holds a `sh` bake", &img);
 }
 
 /// Needs the SG bake.

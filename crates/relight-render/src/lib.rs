@@ -4,6 +4,7 @@
 //! image comparison. Conventions are those of `relight_sphere` (Mitsuba 3's, +Y up).
 
 pub mod compare;
+pub mod decompose_picture;
 pub mod hybrid;
 pub mod image;
 pub mod mitsuba;
@@ -16,4 +17,4 @@ pub mod shadowmap;
 pub mod text;
 pub mod tonemap;
 
-pub use image::Image;
+pub use image::{read_image, write_image, Image, ImageError, ImageFormat};

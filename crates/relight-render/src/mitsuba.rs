@@ -137,9 +137,16 @@ fn latlong_of(map: &EnvMap) -> EnvMap {
     }
 }
 
-/// Path of `tools/mitsuba_reference.py` in this repository.
-pub fn reference_script() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tools/mitsuba_reference.py")
+/// `tools/mitsuba_reference.py`, built into the binary so that an installed `relight` runs
+/// it from anywhere (the build tree is not read at run time).
+pub const REFERENCE_SCRIPT: &str = include_str!("../../../tools/mitsuba_reference.py");
+
+/// Write [`REFERENCE_SCRIPT`] into `dir` (beside the export it renders) and return its path.
+fn write_reference_script(dir: &Path) -> std::io::Result<PathBuf> {
+    let p = dir.join("mitsuba_reference.py");
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(&p, REFERENCE_SCRIPT)?;
+    Ok(p)
 }
 
 /// The Python that runs Mitsuba: `$RELIGHT_MITSUBA_PYTHON`, else
@@ -189,8 +196,15 @@ pub fn render_mitsuba(
     }
     let list: Vec<String> = seeds.iter().map(|s| s.to_string()).collect();
     let out_exr = out_stem.with_extension("exr");
+    let script_dir = scene_json.parent().unwrap_or(Path::new("."));
+    let script = write_reference_script(script_dir).map_err(|e| {
+        format!(
+            "cannot write the Mitsuba script into {}: {e}",
+            script_dir.display()
+        )
+    })?;
     let mut cmd = Command::new(python);
-    cmd.arg(reference_script())
+    cmd.arg(&script)
         .arg(scene_json)
         .arg(&out_exr)
         .args(["--seeds", &list.join(",")]);

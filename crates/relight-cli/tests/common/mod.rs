@@ -33,15 +33,32 @@ pub fn stdout(o: &Output) -> String {
 /// Whether Mitsuba-backed evaluations can run here (`../shared` and Mitsuba 3 present); prints
 /// the reason for skipping otherwise.
 pub fn can_evaluate() -> bool {
-    if relight_scene::testdata::shared_dir().is_none() {
-        eprintln!("SKIP: ../shared not present");
+    if relight_scene::testdata::require_shared_dir("this evaluation").is_none() {
         return false;
     }
     if let Err(e) = relight_render::mitsuba::mitsuba_python() {
-        eprintln!("SKIP: Mitsuba 3 not available: {e}");
+        relight_scene::testdata::skip(&format!("Mitsuba 3 not available: {e}"));
         return false;
     }
     true
+}
+
+/// The repository's `examples/` folder (test-only: the binary never reads the build tree).
+pub fn examples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .canonicalize()
+        .unwrap()
+}
+
+/// Run the `relight` binary with `args` from the folder `cwd`, as an installed binary run
+/// from anywhere.
+pub fn relight_in(cwd: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relight"))
+        .current_dir(cwd)
+        .args(args)
+        .output()
+        .expect("run relight")
 }
 
 /// `o` failed cleanly: non-zero exit, an error naming `must_name`, no panic, and no (partial)

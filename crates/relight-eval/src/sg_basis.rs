@@ -65,7 +65,7 @@
 //! an arbitrary vertex is in a global frame; the Haar error of the cube-aligned tabulation is
 //! reported alongside as a sensitivity check.
 
-use anyhow::{Context, Result};
+use crate::{output, Result};
 use rayon::prelude::*;
 use relight_render::plot::{self, Chart, Series, YScale};
 use relight_scene::accel::{self, Ray};
@@ -548,8 +548,11 @@ pub fn charts(curves: &[Curves]) -> Vec<Chart> {
 }
 
 /// Runs the experiment and writes `fig3-3.csv`, `fig3-3.md` and `fig3-3.png` into `out`.
+///
+/// # Errors
+/// A write error naming the file.
 pub fn run(out: &Path) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    output::create_dir(out)?;
     let cfg = Config::default();
     let start = Instant::now();
     eprintln!(
@@ -575,14 +578,8 @@ pub fn run(out: &Path) -> Result<()> {
         })
         .collect();
     let md = markdown(&curves);
-    let write = |name: &str, text: &str| -> Result<()> {
-        let p = out.join(name);
-        let tmp = out.join(format!(".{name}.tmp"));
-        std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
-        std::fs::rename(&tmp, &p).with_context(|| format!("writing {}", p.display()))
-    };
-    write("fig3-3.csv", &csv(&curves))?;
-    write("fig3-3.md", &md)?;
+    relight_bundle::write_atomic(&out.join("fig3-3.csv"), csv(&curves).as_bytes())?;
+    relight_bundle::write_atomic(&out.join("fig3-3.md"), md.as_bytes())?;
     plot::write_png(&out.join("fig3-3.png"), &charts(&curves), 700, 500)?;
     println!("{md}");
     eprintln!(
@@ -594,5 +591,4 @@ pub fn run(out: &Path) -> Result<()> {
 }
 
 #[cfg(test)]
-#[path = "eval_sg_basis_tests.rs"]
 mod tests;

@@ -10,43 +10,105 @@
 //! Then the later methods: hybrid frames, the Gaussian-prefiltered environment, and the SG
 //! frame (512 x 512, ~15K vertices) against the SH frame of the same scene.
 
-use anyhow::{anyhow, Result};
+use crate::Result;
 use rayon::prelude::*;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_bake::transport::{surface_ray, vertex_geometric_normals, VertexSamples};
 use relight_scene::accel::{self, bench::bench_occlusion, RayCaster};
 use relight_scene::mesh::TriMesh;
+use serde::Serialize;
+use serde_json::{json, Value};
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// Arguments of `relight bench`.
-#[derive(clap::Args)]
-pub struct Args {
+/// The benchmarks' options.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
     /// Rays per throughput measurement.
-    #[arg(long, default_value_t = 2_000_000)]
     pub rays: usize,
-    /// Mesh for the ray benchmark (default: ../shared/data/meshes/dragon.obj, 100K triangles,
-    /// else a procedural 100K-triangle sphere).
-    #[arg(long)]
+    /// Mesh for the ray benchmark (`None`: `<data>/data/meshes/dragon.obj`, 100K triangles, if
+    /// a data folder is given, else a procedural 100K-triangle sphere).
     pub ray_mesh: Option<PathBuf>,
-    /// Mesh for the bake benchmark (default: ../shared/data/meshes/bunny_watertight.obj, else a
+    /// Mesh for the bake benchmark (`None`: `<data>/data/meshes/bunny_watertight.obj`, else a
     /// procedural sphere on a plane).
-    #[arg(long)]
     pub bake_mesh: Option<PathBuf>,
+    /// The shared data folder, if any.
+    pub data: Option<PathBuf>,
     /// Vertices of the relight benchmark.
-    #[arg(long, default_value_t = 1_000_000)]
     pub relight_vertices: usize,
     /// Fewer rays and samples (a quick smoke run).
-    #[arg(long)]
     pub quick: bool,
 }
 
-fn shared_mesh(explicit: &Option<PathBuf>, rel: &str) -> Result<Option<(String, TriMesh)>> {
+/// One table of the report.
+#[derive(Clone, Debug, Serialize)]
+pub struct Section {
+    /// What was measured.
+    pub title: String,
+    /// Column names.
+    pub columns: Vec<String>,
+    /// Rows (numbers where the cell is a number).
+    pub rows: Vec<Vec<Value>>,
+}
+
+impl Section {
+    fn new(title: impl Into<String>, columns: &[&str]) -> Section {
+        Section {
+            title: title.into(),
+            columns: columns.iter().map(|c| c.to_string()).collect(),
+            rows: vec![],
+        }
+    }
+
+    fn row(&mut self, cells: Vec<Value>) {
+        self.rows.push(cells);
+    }
+
+    /// The section as markdown.
+    pub fn markdown(&self) -> String {
+        let cell = |v: &Value| match v {
+            Value::String(s) => s.clone(),
+            Value::Number(n) => match n.as_f64() {
+                Some(x) if n.is_f64() => format!("{x:.2}"),
+                _ => n.to_string(),
+            },
+            other => other.to_string(),
+        };
+        let mut s = format!(
+            "## {}\n| {} |\n|{}\n",
+            self.title,
+            self.columns.join(" | "),
+            "---|".repeat(self.columns.len())
+        );
+        for r in &self.rows {
+            s.push_str(&format!(
+                "| {} |\n",
+                r.iter().map(cell).collect::<Vec<_>>().join(" | ")
+            ));
+        }
+        s
+    }
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    /// Worker threads.
+    pub threads: usize,
+    /// CPU architecture.
+    pub arch: String,
+    /// The tables, in order.
+    pub sections: Vec<Section>,
+}
+
+fn shared_mesh(
+    explicit: &Option<PathBuf>,
+    data: &Option<PathBuf>,
+    rel: &str,
+) -> Result<Option<(String, TriMesh)>> {
     let path = match explicit {
         Some(p) => Some(p.clone()),
-        None => relight_scene::testdata::shared_dir()
-            .map(|d| d.join(rel))
-            .filter(|p| p.is_file()),
+        None => data.as_ref().map(|d| d.join(rel)).filter(|p| p.is_file()),
     };
     match path {
         Some(p) => {
@@ -57,50 +119,59 @@ fn shared_mesh(explicit: &Option<PathBuf>, rel: &str) -> Result<Option<(String, 
     }
 }
 
-/// Run the benchmarks and print a report.
-pub fn run(a: Args) -> Result<()> {
+/// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
+///
+/// # Errors
+/// A mesh that cannot be read, or a bake that fails.
+pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     let threads = rayon::current_num_threads();
     let rays = if a.quick { a.rays.min(200_000) } else { a.rays };
-    println!(
-        "# relight bench ({} threads, {})",
+    let mut report = BenchReport {
         threads,
-        std::env::consts::ARCH
-    );
+        arch: std::env::consts::ARCH.into(),
+        sections: vec![],
+    };
+    let mut push = |s: Section| {
+        eprintln!("{}", s.markdown());
+        report.sections.push(s);
+    };
 
     // 1. Ray throughput.
-    let (name, mesh) = match shared_mesh(&a.ray_mesh, "data/meshes/dragon.obj")? {
+    let (name, mesh) = match shared_mesh(&a.ray_mesh, &a.data, "data/meshes/dragon.obj")? {
         Some(x) => x,
         None => {
-            eprintln!(
-                "bench: ../shared/data/meshes/dragon.obj not found: using a procedural sphere"
-            );
+            eprintln!("bench: no dragon.obj (--ray-mesh or --data): using a procedural sphere");
             (
                 "procedural sphere".into(),
                 relight_scene::shapes::uv_sphere(glam::Vec3::ZERO, 1.0, 224, 224),
             )
         }
     };
-    println!(
-        "\n## Ray throughput: {} ({} triangles), {} incoherent rays from the surface",
-        name,
-        mesh.triangle_count(),
-        rays
+    let mut sec = Section::new(
+        format!(
+            "Ray throughput: {} ({} triangles), {} incoherent rays from the surface",
+            name,
+            mesh.triangle_count(),
+            rays
+        ),
+        &["back-end", "query", "Mrays/s", "ratio to Embree"],
     );
-    println!("| back-end | query | Mrays/s | ratio to Embree |\n|---|---|---|---|");
     for r in bench_occlusion(&mesh, rays, 7, threads) {
-        println!(
-            "| {} | {} | {:.2} | {:.2} |",
-            r.backend, r.query, r.mrays_per_s, r.ratio_to_embree
-        );
+        sec.row(vec![
+            json!(r.backend),
+            json!(r.query),
+            json!(r.mrays_per_s),
+            json!(r.ratio_to_embree),
+        ]);
     }
+    push(sec);
 
     // 2. Bake overhead.
-    let (name, mesh) = match shared_mesh(&a.bake_mesh, "data/meshes/bunny_watertight.obj")? {
+    let (name, mesh) = match shared_mesh(&a.bake_mesh, &a.data, "data/meshes/bunny_watertight.obj")?
+    {
         Some(x) => x,
         None => {
-            eprintln!(
-                "bench: bunny_watertight.obj not found: using a procedural sphere on a plane"
-            );
+            eprintln!("bench: no bunny_watertight.obj: using a procedural sphere on a plane");
             let mut m =
                 relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
             m.append(
@@ -119,35 +190,41 @@ pub fn run(a: Args) -> Result<()> {
         order: 4,
         samples,
         seed: 1,
-        kind: ShTransferKind::Interreflected { bounces: 1 },
-        threads: None,
-        progress: false,
+        transfer: ShTransferKind::Interreflected,
+        bounces: 1,
+        ..Default::default()
     };
     let t0 = Instant::now();
     let transfer = relight_bake::sh::bake(&mesh, &materials, caster.as_ref(), &settings)
-        .map_err(|e| anyhow!("bake: {e}"))?;
+        .map_err(relight_method::MethodError::from)?;
     let bake_s = t0.elapsed().as_secs_f64();
     std::hint::black_box(&transfer);
     let cast_s = cast_bake_rays(&mesh, caster.as_ref(), samples);
     let nrays = mesh.vertex_count() as u64 * samples as u64;
-    println!(
-        "\n## SH bake: {} ({} vertices), order 4, {} samples, shadowed + 1 bounce, {}",
-        name,
-        mesh.vertex_count(),
-        samples,
-        caster.name()
+    let mut sec = Section::new(
+        format!(
+            "SH bake: {} ({} vertices), order 4, {} samples, shadowed + 1 bounce, {}",
+            name,
+            mesh.vertex_count(),
+            samples,
+            caster.name()
+        ),
+        &[
+            "bake (s)",
+            "same rays, cast only (s)",
+            "overhead",
+            "rays",
+            "bake Mrays/s",
+        ],
     );
-    println!(
-        "| bake | same rays, cast only | overhead | rays | bake Mrays/s |\n|---|---|---|---|---|"
-    );
-    println!(
-        "| {:.2} s | {:.2} s | {:.2}x | {} | {:.2} |",
-        bake_s,
-        cast_s,
-        bake_s / cast_s,
-        nrays,
-        nrays as f64 / bake_s / 1e6
-    );
+    sec.row(vec![
+        json!(bake_s),
+        json!(cast_s),
+        json!(bake_s / cast_s),
+        json!(nrays),
+        json!(nrays as f64 / bake_s / 1e6),
+    ]);
+    push(sec);
 
     // 3. Relight vs bandwidth.
     let verts = if a.quick {
@@ -156,55 +233,73 @@ pub fn run(a: Args) -> Result<()> {
         a.relight_vertices
     };
     let r = relight_render::shade_sh::bench_relight(verts, 5);
-    println!(
-        "\n## SH relight: {} vertices, order 5, single-channel transfer + albedo",
-        verts
+    let mut sec = Section::new(
+        format!("SH relight: {verts} vertices, order 5, single-channel transfer + albedo"),
+        &[
+            "ms/frame",
+            "MB/frame",
+            "achieved GB/s",
+            "STREAM copy GB/s",
+            "time over bandwidth bound",
+        ],
     );
-    println!("| ms/frame | MB/frame | achieved GB/s | STREAM copy GB/s | time over bandwidth bound |\n|---|---|---|---|---|");
     let achieved = r.bytes_per_frame as f64 / (r.ms_per_frame * 1e-3) / 1e9;
-    println!(
-        "| {:.2} | {:.1} | {:.2} | {:.2} | {:.2}x |",
-        r.ms_per_frame,
-        r.bytes_per_frame as f64 / 1e6,
-        achieved,
-        r.stream_copy_gbps,
-        1.0 / r.ratio_to_bandwidth_bound
-    );
+    sec.row(vec![
+        json!(r.ms_per_frame),
+        json!(r.bytes_per_frame as f64 / 1e6),
+        json!(achieved),
+        json!(r.stream_copy_gbps),
+        json!(1.0 / r.ratio_to_bandwidth_bound),
+    ]);
+    push(sec);
 
-    // 4. Hybrid method (issue 3): decomposition per frame, hybrid frames with 8 and 16 lights.
-    bench_hybrid(a.quick);
-    // 5. Gaussian-prefiltered environment (issue 4 building block).
-    bench_prefilter();
-    // 6. SG frame (issue 4): per-vertex view blend + per-pixel lobe blend and fetches.
-    bench_sg(a.quick);
-    Ok(())
+    // 4. Hybrid method: decomposition per frame, hybrid frames with 8 and 16 lights.
+    for s in bench_hybrid(a.quick) {
+        push(s);
+    }
+    // 5. Gaussian-prefiltered environment.
+    push(bench_prefilter());
+    // 6. SG frame: per-vertex view blend + per-pixel lobe blend and fetches.
+    push(bench_sg(a.quick));
+    Ok(report)
 }
 
-/// A 512 x 512 SG frame of a ~15K-vertex sphere (1, 2 and 3 lobes; 1 only with --quick)
+/// A 512 x 512 SG frame of a ~15K-vertex sphere (1, 2 and 3 lobes; 1 only with `quick`)
 /// against the SH PRT frame of the same mesh and camera, measured in the same run (median of
-/// 9 frames, 3 with --quick).
-fn bench_sg(quick: bool) {
+/// 9 frames, 3 with `quick`).
+fn bench_sg(quick: bool) -> Section {
     let runs = if quick { 3 } else { 9 };
-    println!(
-        "\n## SG frame: 512 x 512, ~15K-vertex sphere, one sample per pixel (median of {runs})"
+    let mut sec = Section::new(
+        format!("SG frame: 512 x 512, ~15K-vertex sphere, one sample per pixel (median of {runs})"),
+        &[
+            "lobes",
+            "vertices",
+            "coverage",
+            "SG frame (ms)",
+            "of which per-vertex (ms)",
+            "SG CPU time, all threads (ms)",
+            "SH frame (ms)",
+            "SH CPU time (ms)",
+            "SG / SH",
+            "fps",
+        ],
     );
-    println!("| lobes | vertices | coverage | SG frame (ms) | of which per-vertex (ms) | SG CPU time, all threads (ms) | SH frame (ms) | SH CPU time (ms) | SG / SH | fps |\n|---|---|---|---|---|---|---|---|---|---|");
-    let cpu = |c: Option<f64>| c.map_or("n/a".into(), |c| format!("{c:.1}"));
     for lobes in if quick { 1..=1 } else { 1..=3 } {
         let b = relight_render::shade_sg::bench_sg_frame(lobes, runs);
-        println!(
-            "| {lobes} | {} | {:.0} % | {:.1} | {:.1} | {} | {:.1} | {} | {:.2} | {:.0} |",
-            b.vertices,
-            100.0 * b.coverage,
-            b.ms_per_frame,
-            b.vertex_ms,
-            cpu(b.cpu_ms_per_frame),
-            b.sh_ms_per_frame,
-            cpu(b.sh_cpu_ms_per_frame),
-            b.ms_per_frame / b.sh_ms_per_frame,
-            1e3 / b.ms_per_frame
-        );
+        sec.row(vec![
+            json!(lobes),
+            json!(b.vertices),
+            json!(b.coverage),
+            json!(b.ms_per_frame),
+            json!(b.vertex_ms),
+            json!(b.cpu_ms_per_frame),
+            json!(b.sh_ms_per_frame),
+            json!(b.sh_cpu_ms_per_frame),
+            json!(b.ms_per_frame / b.sh_ms_per_frame),
+            json!(1e3 / b.ms_per_frame),
+        ]);
     }
+    sec
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -215,7 +310,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Decomposition of a 6 x 64 x 64 cube map (median of 9), and a 512 x 512 hybrid frame with 8
 /// lights on a ~100K-triangle scene (best of 3), area and point lights, 2048 and 1024 maps, and
 /// with 16 (the render default) area lights and 2048 maps.
-fn bench_hybrid(quick: bool) {
+fn bench_hybrid(quick: bool) -> Vec<Section> {
     use relight_render::hybrid::{
         build_shadow_maps, render_hybrid_with_maps, HybridLight, ShadowSettings,
     };
@@ -224,10 +319,14 @@ fn bench_hybrid(quick: bool) {
             .map(|_| relight_sphere::decompose::bench_decompose())
             .collect(),
     );
-    println!("\n## Hybrid: environment decomposition, 6 x 64 x 64 cube map, 3 lights + sky");
-    println!(
-        "| ms per decomposition (median of 9) | per-frame budget |\n|---|---|\n| {ms:.2} | 5 ms |"
+    let mut dec = Section::new(
+        "Hybrid: environment decomposition, 6 x 64 x 64 cube map, 3 lights + sky",
+        &[
+            "ms per decomposition (median of 9)",
+            "per-frame budget (ms)",
+        ],
     );
+    dec.row(vec![json!(ms), json!(5)]);
     let mut mesh = relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 1.0, 0.0), 1.0, 150, 300);
     mesh.append(
         &relight_scene::shapes::ground_plane(glam::Vec3::ZERO, 10.0, 70),
@@ -261,12 +360,14 @@ fn bench_hybrid(quick: bool) {
         &mesh, &camera, &prt, None, &opts,
     ));
     let prt_ms = t0.elapsed().as_secs_f64() * 1e3;
-    println!(
-        "\n## Hybrid frame: 512 x 512, {} triangles, 8 and 16 lights (16 = the render default; best of {})",
-        mesh.triangle_count(),
-        if quick { 1 } else { 3 }
+    let mut frames = Section::new(
+        format!(
+            "Hybrid frame: 512 x 512, {} triangles, 8 and 16 lights (16 = the render default; best of {})",
+            mesh.triangle_count(),
+            if quick { 1 } else { 3 }
+        ),
+        &["lights", "shadow maps", "light model", "shadow maps (ms)", "shading (ms)", "frame (ms)", "PRT-only frame (ms)"],
     );
-    println!("| lights | shadow maps | light model | shadow maps (ms) | shading (ms) | frame (ms) | PRT-only frame (ms) |\n|---|---|---|---|---|---|---|");
     for (count, map_size, area_light) in [
         (8, 2048, true),
         (8, 2048, false),
@@ -294,23 +395,27 @@ fn bench_hybrid(quick: bool) {
                 best = (a, b);
             }
         }
-        println!(
-            "| {count} | {map_size} | {} | {:.0} | {:.0} | {:.0} | {prt_ms:.0} |",
-            if area_light {
-                "area (PCSS)"
-            } else {
-                "point (PCF)"
-            },
-            best.0,
-            best.1,
-            best.0 + best.1
-        );
+        let model = if area_light {
+            "area (PCSS)"
+        } else {
+            "point (PCF)"
+        };
+        frames.row(vec![
+            json!(count),
+            json!(map_size),
+            json!(model),
+            json!(best.0),
+            json!(best.1),
+            json!(best.0 + best.1),
+            json!(prt_ms),
+        ]);
     }
+    vec![dec, frames]
 }
 
 /// Gaussian-prefiltered cube map, 6 x 256 x 256, 8 levels: sequential (the library's
 /// `PrefilteredEnv::build`) and with the per-face jobs on rayon's pool.
-fn bench_prefilter() {
+fn bench_prefilter() -> Section {
     use relight_sphere::cubemap::CubeFace;
     use relight_sphere::env_prefilter::{
         default_levels, prefilter_face, PrefilterOptions, PrefilteredEnv, SourcePyramid,
@@ -339,8 +444,16 @@ fn bench_prefilter() {
         .collect();
     std::hint::black_box(PrefilteredEnv::from_levels(levels, data));
     let parallel = t0.elapsed().as_secs_f64();
-    println!("\n## Gaussian-prefiltered environment: 6 x 256 x 256, 8 levels");
-    println!("| sequential (s) | {} threads (s) | cmft's published time (s) |\n|---|---|---|\n| {sequential:.2} | {parallel:.2} | 6.0 |", rayon::current_num_threads());
+    let mut sec = Section::new(
+        "Gaussian-prefiltered environment: 6 x 256 x 256, 8 levels",
+        &[
+            "sequential (s)",
+            &format!("{} threads (s)", rayon::current_num_threads()),
+            "cmft's published time (s)",
+        ],
+    );
+    sec.row(vec![json!(sequential), json!(parallel), json!(6.0)]);
+    sec
 }
 
 /// Cast exactly the rays of a shadowed + 1 bounce bake (same directions and origins), doing

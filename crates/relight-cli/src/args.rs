@@ -1,0 +1,387 @@
+//! Parsing shared by the subcommands (camera, window, tone map, back-end, environment
+//! overrides), the checks of output paths before any work, and `--json` printing.
+
+use anyhow::{bail, ensure, Context, Result};
+use clap::parser::ValueSource;
+use clap::ArgMatches;
+use relight_render::tonemap::ToneMap;
+use relight_render::ImageFormat;
+use relight_scene::accel::Backend;
+use relight_scene::camera::Camera;
+use relight_scene::scene::Environment;
+use relight_scene::scene_file::{self, parse_layout, SceneDesc};
+use relight_sphere::sh::Window;
+use std::path::{Path, PathBuf};
+
+/// Parse a tone map: `linear[:EXPOSURE]`, `reinhard[:EXPOSURE]`, `exp[:GAMMA]` (the thesis'
+/// `1 - exp(-gamma c)`).
+pub fn tonemap(s: &str) -> Result<ToneMap> {
+    let (name, val) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v)));
+    let v = match val {
+        Some(v) => v
+            .parse::<f32>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .with_context(|| format!("tone map '{s}': '{v}' is not a positive number"))?,
+        None => 1.0,
+    };
+    Ok(match name {
+        "linear" => ToneMap::Linear { exposure: v },
+        "reinhard" => ToneMap::Reinhard { exposure: v },
+        "exp" | "exponential" => ToneMap::Exponential { gamma: v },
+        _ => bail!("unknown tone map '{name}' (linear, reinhard, exp)"),
+    })
+}
+
+/// Parse an SH window: `none`, `hann`, `lanczos`, `sloan[:LAMBDA]`.
+pub fn window(s: &str) -> Result<Window> {
+    Ok(match s.split_once(':') {
+        None if s == "none" => Window::None,
+        None if s == "hann" => Window::Hann,
+        None if s == "lanczos" => Window::Lanczos,
+        None if s == "sloan" => Window::Sloan { lambda: 0.001 },
+        Some(("sloan", l)) => Window::Sloan {
+            lambda: l
+                .parse()
+                .ok()
+                .filter(|x: &f32| x.is_finite() && *x >= 0.0)
+                .with_context(|| format!("--window '{s}': lambda must be a finite number >= 0"))?,
+        },
+        _ => bail!("unknown --window '{s}' (none, hann, lanczos, sloan[:LAMBDA])"),
+    })
+}
+
+/// Parse a ray-casting back-end name (`None`: the fastest available).
+pub fn backend(s: Option<&str>) -> Result<Backend> {
+    let b = match s {
+        None => return Ok(Backend::available()[0]),
+        Some("embree") => Backend::Embree,
+        Some("bvh") => Backend::Bvh,
+        Some(o) => bail!("unknown --backend '{o}' (embree, bvh)"),
+    };
+    ensure!(
+        Backend::available().contains(&b),
+        "--backend {} is not in this build (built without the `embree` feature)",
+        s.unwrap_or_default()
+    );
+    Ok(b)
+}
+
+/// Parse `x,y,z` (finite numbers).
+pub fn vec3(s: &str, flag: &str) -> Result<[f32; 3]> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{flag} '{s}' is not three numbers x,y,z"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => bail!("{flag} '{s}' is not three finite numbers x,y,z"),
+    }
+}
+
+/// Parse `ox,oy,oz/tx,ty,tz[/fov]` over a base camera.
+pub fn camera(s: &str, base: &Camera) -> Result<Camera> {
+    let parts: Vec<&str> = s.split('/').collect();
+    ensure!(
+        (2..=3).contains(&parts.len()),
+        "--camera '{s}': expected ox,oy,oz/tx,ty,tz[/fov]"
+    );
+    let mut c = *base;
+    c.origin = vec3(parts[0], "--camera origin")?;
+    c.target = vec3(parts[1], "--camera target")?;
+    c.up = [0.0, 1.0, 0.0];
+    if let Some(f) = parts.get(2) {
+        c.fov_deg = f
+            .trim()
+            .parse()
+            .with_context(|| format!("--camera '{s}': fov '{f}' is not a number"))?;
+    }
+    Ok(c)
+}
+
+/// Parse a list of SH orders: `5`, `3,4,6`, `2-10`.
+pub fn orders(s: &str) -> Result<Vec<usize>> {
+    let mut out = Vec::new();
+    for part in s.split(',') {
+        let num = |x: &str| -> Result<usize> {
+            x.trim()
+                .parse()
+                .with_context(|| format!("--sh-orders '{s}': '{x}' is not an order"))
+        };
+        match part.split_once('-') {
+            Some((a, b)) => {
+                let (a, b) = (num(a)?, num(b)?);
+                ensure!(a <= b, "--sh-orders '{s}': range {a}-{b} is empty");
+                out.extend(a..=b);
+            }
+            None => out.push(num(part)?),
+        }
+    }
+    let max = relight_sphere::sh::MAX_ORDER;
+    ensure!(
+        out.iter().all(|o| (1..=max).contains(o)),
+        "--sh-orders '{s}': orders must be in 1..={max}"
+    );
+    Ok(out)
+}
+
+/// Options that choose an environment map and how it is placed.
+#[derive(clap::Args, Clone, Debug)]
+pub struct EnvArgs {
+    /// Environment map (.hdr/.exr: latlong, vertical cross or angular probe; default: the
+    /// baked scene's environment).
+    #[arg(long)]
+    pub env: Option<PathBuf>,
+    /// Layout of --env (latlong, cube, probe); detected from the aspect ratio when absent.
+    #[arg(long)]
+    pub layout: Option<String>,
+    /// Rotate the environment about +Y by this many degrees (Mitsuba `to_world` rotate).
+    #[arg(long, alias = "rotate-y", allow_negative_numbers = true)]
+    pub rotate_env: Option<f32>,
+    /// Multiply the environment's radiance (a finite number >= 0).
+    #[arg(long)]
+    pub env_scale: Option<f32>,
+}
+
+impl EnvArgs {
+    /// The environment: `--env` or the scene's, with the rotation and scale overrides.
+    pub fn build(&self, scene: &SceneDesc, bundle: &Path) -> Result<Environment> {
+        if let Some(r) = self.rotate_env {
+            ensure!(r.is_finite(), "--rotate-env {r} is not a finite angle");
+        }
+        if let Some(s) = self.env_scale {
+            ensure!(
+                s.is_finite() && s >= 0.0,
+                "--env-scale {s} is not a finite number >= 0"
+            );
+        }
+        let mut env = match &self.env {
+            Some(p) => Environment::new(relight_scene::io::load_env(p, self.layout()?)?),
+            None => scene_file::build_env(&scene.environment).with_context(|| {
+                format!(
+                    "{}: loading the baked scene's environment (pass --env to use another)",
+                    bundle.display()
+                )
+            })?,
+        };
+        if let Some(r) = self.rotate_env {
+            env.rotate_y_deg = r;
+        }
+        if let Some(s) = self.env_scale {
+            env.scale = s;
+        }
+        Ok(env)
+    }
+
+    fn layout(&self) -> Result<Option<relight_sphere::envmap::EnvLayout>> {
+        self.layout
+            .as_deref()
+            .map(|l| {
+                parse_layout(l)
+                    .with_context(|| format!("unknown --layout '{l}' (latlong, cube, probe)"))
+            })
+            .transpose()
+    }
+}
+
+/// The environment layout option of `project` and `decompose`.
+pub fn layout(s: Option<&str>) -> Result<Option<relight_sphere::envmap::EnvLayout>> {
+    s.map(|l| {
+        parse_layout(l).with_context(|| format!("unknown --layout '{l}' (latlong, cube, probe)"))
+    })
+    .transpose()
+}
+
+/// Check output files before any work: a known extension, an existing writable folder, and
+/// not one of the inputs (writing over the scene or the environment read is refused).
+pub fn check_outputs(outs: &[&Path], exts: &[&str], inputs: &[&Path]) -> Result<()> {
+    let canon = |p: &Path| p.canonicalize().ok();
+    let inputs: Vec<PathBuf> = inputs.iter().filter_map(|p| canon(p)).collect();
+    for (i, out) in outs.iter().enumerate() {
+        let ext = out
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        ensure!(
+            exts.contains(&ext.as_str()),
+            "{}: unknown output extension '{ext}' (expected {})",
+            out.display(),
+            exts.join(", ")
+        );
+        let dir = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        ensure!(
+            dir.is_dir(),
+            "{}: the folder {} does not exist",
+            out.display(),
+            dir.display()
+        );
+        ensure!(
+            out.file_name().is_some() && !out.is_dir(),
+            "{}: is a folder, not a file name",
+            out.display()
+        );
+        let probe = dir.join(format!(".relight-write-check-{}", std::process::id()));
+        std::fs::write(&probe, b"")
+            .with_context(|| format!("{}: cannot write in {}", out.display(), dir.display()))?;
+        let _ = std::fs::remove_file(&probe);
+        if let Some(c) = canon(out) {
+            ensure!(
+                !inputs.contains(&c),
+                "{}: is also an input; refusing to overwrite it",
+                out.display()
+            );
+        }
+        ensure!(
+            !outs[..i].contains(out),
+            "{}: given twice as an output",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The image extensions relight writes.
+pub const IMAGE_EXTS: [&str; 3] = ["exr", "hdr", "png"];
+
+/// Check that every output path is an image relight writes (extension first, then
+/// [`check_outputs`]).
+pub fn check_image_outputs(outs: &[PathBuf], inputs: &[&Path]) -> Result<()> {
+    for o in outs {
+        ImageFormat::require(o)?;
+    }
+    let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
+    check_outputs(&outs, &IMAGE_EXTS, inputs)
+}
+
+/// The arguments of a clap `Args` struct: (id, long name).
+pub fn arg_names<T: clap::Args>() -> Vec<(String, String)> {
+    T::augment_args(clap::Command::new("x"))
+        .get_arguments()
+        .filter_map(|a| Some((a.get_id().to_string(), a.get_long()?.to_string())))
+        .collect()
+}
+
+/// Refuse options given on the command line that do not apply to `method`: `groups` lists,
+/// per set of methods, the arguments only they take.
+pub fn refuse_foreign<K: clap::ValueEnum + PartialEq + Copy>(
+    m: &ArgMatches,
+    method: K,
+    groups: &[(&[K], Vec<(String, String)>)],
+) -> Result<()> {
+    let name = |k: K| {
+        k.to_possible_value()
+            .map_or_else(String::new, |v| v.get_name().to_string())
+    };
+    for (methods, args) in groups {
+        if methods.contains(&method) {
+            continue;
+        }
+        for (id, long) in args {
+            if given(m, id) {
+                let names: Vec<String> = methods.iter().map(|&k| name(k)).collect();
+                bail!(
+                    "--{long} applies to --method {}, not to --method {}",
+                    names.join(" or "),
+                    name(method)
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `(id, long)` of named arguments.
+pub fn named(ids: &[&str]) -> Vec<(String, String)> {
+    ids.iter()
+        .map(|id| (id.to_string(), id.replace('_', "-")))
+        .collect()
+}
+
+/// Whether the argument `id` was given on the command line.
+pub fn given(m: &ArgMatches, id: &str) -> bool {
+    m.try_get_raw(id).is_ok() && m.value_source(id) == Some(ValueSource::CommandLine)
+}
+
+/// Human lines or one JSON summary on stdout.
+pub struct Out {
+    /// Print JSON instead of text.
+    pub json: bool,
+}
+
+impl Out {
+    /// A line of the human report (nothing in JSON mode).
+    pub fn line(&self, s: impl AsRef<str>) {
+        if !self.json {
+            println!("{}", s.as_ref());
+        }
+    }
+
+    /// The JSON summary (nothing in human mode).
+    pub fn summary(&self, v: serde_json::Value) {
+        if self.json {
+            println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+        }
+    }
+}
+
+/// A file's size in MiB (0 if it cannot be read).
+pub fn mib(path: &Path) -> f64 {
+    std::fs::metadata(path).map_or(0.0, |m| m.len() as f64 / (1 << 20) as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_parse_or_are_refused() {
+        assert_eq!(
+            tonemap("exp:2").unwrap(),
+            ToneMap::Exponential { gamma: 2.0 }
+        );
+        assert_eq!(
+            tonemap("linear").unwrap(),
+            ToneMap::Linear { exposure: 1.0 }
+        );
+        assert!(tonemap("exp:-1").is_err() && tonemap("foo").is_err());
+        assert_eq!(window("sloan:0.5").unwrap(), Window::Sloan { lambda: 0.5 });
+        assert!(window("sloan:inf").is_err() && window("sloan:-1").is_err());
+        assert_eq!(orders("2-4,7").unwrap(), vec![2, 3, 4, 7]);
+        assert!(orders("4-2").is_err() && orders("0").is_err() && orders("x").is_err());
+        assert!(vec3("1,2", "--a").is_err() && vec3("1,2,inf", "--a").is_err());
+        let c = camera("0,1,2/0,0,0/30", &Camera::default()).unwrap();
+        assert_eq!((c.origin, c.fov_deg), ([0.0, 1.0, 2.0], 30.0));
+    }
+
+    #[test]
+    fn outputs_are_checked_before_work() {
+        let dir = std::env::temp_dir().join(format!("relight-args-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let input = dir.join("scene.json");
+        std::fs::write(&input, "{}").unwrap();
+        let ok = dir.join("a.png");
+        assert!(check_outputs(&[&ok], &IMAGE_EXTS, &[&input]).is_ok());
+        for (bad, want) in [
+            (dir.join("a.txt"), "unknown output extension"),
+            (dir.join("missing/a.png"), "does not exist"),
+        ] {
+            let e = check_outputs(&[&bad], &IMAGE_EXTS, &[])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want), "{e}");
+        }
+        let e = check_outputs(&[&input], &["json"], &[&input])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("also an input"), "{e}");
+        let e = check_outputs(&[&ok, &ok], &IMAGE_EXTS, &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("twice"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
