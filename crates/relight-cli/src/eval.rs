@@ -1,7 +1,7 @@
 //! `relight eval`: each method against Mitsuba 3 ground truth (the experiments live in
 //! `relight-eval`; this parses their options).
 
-use crate::args::{self, arg_names, named, refuse_foreign};
+use crate::args::{self, arg_names, named, refuse_foreign, Out};
 use anyhow::{bail, Context, Result};
 use clap::ArgMatches;
 use relight_bake::sg::SgBakeSettings;
@@ -82,8 +82,29 @@ fn example(a: &Args, name: &str) -> Result<PathBuf> {
     Ok(p)
 }
 
+/// Print the tables the experiment wrote: markdown, or one JSON object with its rows.
+fn print(a: &Args, out: &Out) -> Result<()> {
+    let (md, json) = match a.method {
+        EvalMethod::SgBasis => ("fig3-3.md", None),
+        _ => ("results.md", Some("results.json")),
+    };
+    let md = a.out.join(md);
+    out.line(std::fs::read_to_string(&md).with_context(|| md.display().to_string())?);
+    let rows = match json {
+        Some(j) => {
+            let p = a.out.join(j);
+            let text = std::fs::read_to_string(&p).with_context(|| p.display().to_string())?;
+            serde_json::from_str(&text)?
+        }
+        None => serde_json::Value::Null,
+    };
+    let method = clap::ValueEnum::to_possible_value(&a.method).map(|v| v.get_name().to_string());
+    out.summary(serde_json::json!({"command": "eval", "method": method, "out": a.out, "table": md, "rows": rows}));
+    Ok(())
+}
+
 /// Run `relight eval`.
-pub fn run(a: Args, m: &ArgMatches) -> Result<()> {
+pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     use EvalMethod::*;
     refuse_foreign(
         m,
@@ -159,5 +180,5 @@ pub fn run(a: Args, m: &ArgMatches) -> Result<()> {
         }
         SgBasis => sg_basis::run(&a.out)?,
     }
-    Ok(())
+    print(&a, out)
 }

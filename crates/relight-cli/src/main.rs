@@ -168,7 +168,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
         Cmd::Render(a) => render::run(a, sub, &out)?,
         Cmd::Reference(a) => reference::run(a, &out)?,
         Cmd::ExportMitsuba(a) => reference::export(a, &out)?,
-        Cmd::Eval(a) => eval::run(a, sub)?,
+        Cmd::Eval(a) => eval::run(a, sub, &out)?,
         Cmd::Decompose(a) => decompose::run(a, &out)?,
         Cmd::Compare(a) => compare::run(a, &out)?,
         Cmd::Info(a) => info::run(a, &out)?,

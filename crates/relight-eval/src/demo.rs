@@ -22,9 +22,7 @@ use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_method::hybrid::HybridFrame;
 use relight_method::sg::{Sg, SgSettings};
 use relight_method::sh::Sh;
-use relight_method::{
-    BakeContext, BakeInput, Baked, Frame, FrameOptions, FrameSettings, Method, MethodKind,
-};
+use relight_method::{Baked, Frame, FrameOptions, FrameSettings, Method, MethodKind};
 use relight_render::compare::{self, Metrics};
 use relight_render::pathtrace::{self, PtSettings};
 use relight_render::tonemap::ToneMap;
@@ -156,17 +154,7 @@ fn bake<M: Method>(desc: &SceneDesc, scene: &Scene, settings: &M::Settings) -> R
 where
     Baked: From<M::Baked>,
 {
-    let origin = Path::new("<built-in demo scene>");
-    let input = BakeInput {
-        desc,
-        scene,
-        origin,
-    };
-    let ctx = BakeContext {
-        progress: true,
-        ..Default::default()
-    };
-    let b: Baked = M::bake(input, settings, 0..scene.mesh.vertex_count(), &ctx)?.into();
+    let b = crate::bake::<M>(desc, scene, Path::new("<built-in demo scene>"), settings)?;
     eprintln!(
         "demo: {} bake of {} vertices in {:.1} s",
         b.kind().name(),

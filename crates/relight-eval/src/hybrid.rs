@@ -22,13 +22,12 @@
 
 mod report;
 
-use crate::reference::{coverage_mask, mitsuba_python, reference, stem, with_width};
+use crate::reference::{coverage_mask, mitsuba_python, stem, with_width, Job};
 use crate::sh::with_env_file;
 use crate::{output, EvalError, Result};
-use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_method::hybrid::{HybridFrame, HybridSettings};
 use relight_method::sh::{Sh, ShFrameSettings};
-use relight_method::{BakeContext, BakeInput, Baked, Frame, FrameOptions, FrameSettings, Method};
+use relight_method::{Baked, Frame, FrameOptions, FrameSettings};
 use relight_render::compare::{self, Metrics};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
@@ -138,24 +137,11 @@ pub fn run(e: &HybridEval) -> Result<Vec<HybridRow>> {
         "eval hybrid: baking order {max_order} ({} vertices)",
         scene0.mesh.vertex_count()
     );
-    let settings = ShBakeSettings {
-        order: max_order,
-        samples: e.samples,
-        seed: 1,
-        transfer: ShTransferKind::Shadowed,
-        ..Default::default()
+    let settings = crate::shadowed(max_order, e.samples);
+    let any = crate::bake::<Sh>(&base, &scene0, &e.scene, &settings)?;
+    let Baked::Sh(baked) = &any else {
+        unreachable!("an sh bake")
     };
-    let input = BakeInput {
-        desc: &base,
-        scene: &scene0,
-        origin: &e.scene,
-    };
-    let ctx = BakeContext {
-        progress: true,
-        ..Default::default()
-    };
-    let baked = Sh::bake(input, &settings, 0..scene0.mesh.vertex_count(), &ctx)?;
-    let any: Baked = baked.clone().into();
     let opts = FrameOptions {
         supersample: 4,
         background: true,
@@ -166,12 +152,17 @@ pub fn run(e: &HybridEval) -> Result<Vec<HybridRow>> {
         let scene = with_env_file(base.clone(), env_path).build(&e.scene)?;
         let dir = e.out.join(&env_name);
         let mask = coverage_mask(&scene);
-        let r = reference(&python, &scene, &dir, "mitsuba", e.spp, 2, [1, 2], &mask)?;
+        let job = Job::mitsuba(&python, &scene, &dir, e.spp, 2);
+        let r = job.reference([1, 2], &mask)?;
         let better_ref = match e.reference_spp {
-            Some(hq) => Some((
-                hq,
-                reference(&python, &scene, &dir, "mitsuba_hq", hq, 2, [3, 4], &mask)?,
-            )),
+            Some(hq) => {
+                let better = Job {
+                    name: "mitsuba_hq",
+                    spp: hq,
+                    ..job
+                };
+                Some((hq, better.reference([3, 4], &mask)?))
+            }
             None => None,
         };
         let mean_y = crate::reference::mean_lum(&r.mean, &mask);
@@ -211,10 +202,10 @@ pub fn run(e: &HybridEval) -> Result<Vec<HybridRow>> {
                 thesis: true,
                 ..ours
             };
-            let mut thesis_frame = HybridFrame::new(&baked, &thesis)?;
+            let mut thesis_frame = HybridFrame::new(baked, &thesis)?;
             thesis_frame.set_environment(&scene.env)?;
             let thesis_img = thesis_frame.render(&scene.camera, &opts).image;
-            let mut frame = HybridFrame::new(&baked, &ours)?;
+            let mut frame = HybridFrame::new(baked, &ours)?;
             frame.set_environment(&scene.env)?;
             let hyb_img = frame.render(&scene.camera, &opts).image;
             let lights = frame.decomposition().map_or(0, |d| d.lights.len());

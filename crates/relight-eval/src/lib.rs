@@ -23,3 +23,46 @@ pub mod sg_basis;
 pub mod sh;
 
 pub use error::{EvalError, Result};
+
+use relight_method::{BakeContext, BakeInput, Baked, Method};
+use relight_scene::scene::Scene;
+use relight_scene::scene_file::SceneDesc;
+use std::path::Path;
+
+/// Bake every vertex of `scene` (built from `desc`, read from `origin`) with method `M`, with
+/// a progress bar: what every experiment starts with.
+///
+/// # Errors
+/// As [`Method::bake`].
+pub fn bake<M: Method>(
+    desc: &SceneDesc,
+    scene: &Scene,
+    origin: &Path,
+    settings: &M::Settings,
+) -> Result<Baked>
+where
+    Baked: From<M::Baked>,
+{
+    let input = BakeInput {
+        desc,
+        scene,
+        origin,
+    };
+    let ctx = BakeContext {
+        progress: true,
+        ..Default::default()
+    };
+    Ok(M::bake(input, settings, 0..scene.mesh.vertex_count(), &ctx)?.into())
+}
+
+/// The shadowed SH settings every diffuse experiment bakes with (seed 1): direct lighting
+/// with visibility, what Mitsuba renders at `max_depth = 2`.
+pub fn shadowed(order: usize, samples: u32) -> relight_bake::sh::ShBakeSettings {
+    relight_bake::sh::ShBakeSettings {
+        order,
+        samples,
+        seed: 1,
+        transfer: relight_bake::sh::ShTransferKind::Shadowed,
+        ..Default::default()
+    }
+}

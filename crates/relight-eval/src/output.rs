@@ -51,13 +51,12 @@ pub fn create_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(EvalError::io(dir))
 }
 
-/// Print the markdown table and write it as `out/results.md`, with the rows as
-/// `out/results.json`.
+/// Write the markdown table as `out/results.md` and the rows as `out/results.json` (the CLI
+/// prints them).
 ///
 /// # Errors
 /// A write error naming the file.
 pub fn results(out: &Path, md: &str, rows: &impl serde::Serialize) -> Result<()> {
-    println!("{md}");
     relight_bundle::write_atomic(&out.join("results.md"), md.as_bytes())?;
     let json = serde_json::to_string_pretty(rows)
         .map_err(|e| EvalError::Options(format!("cannot write results.json: {e}")))?;

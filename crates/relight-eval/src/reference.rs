@@ -46,73 +46,94 @@ pub struct Reference {
     pub lum_noise: f64,
 }
 
-/// Render `scene` with Mitsuba (`max_depth`: 2 direct only, -1 unlimited) at `spp` per seed
-/// for each of `seeds`, exported under `dir/name` with images `dir/name_s<seed>.exr`,
-/// reusing the images of an identical earlier export (module docs).
-///
-/// # Errors
-/// Export or Mitsuba failures naming `dir`.
-pub fn render_seeds(
-    python: &Path,
-    scene: &Scene,
-    dir: &Path,
-    name: &str,
-    spp: u32,
-    max_depth: i32,
-    seeds: &[u32],
-) -> Result<Vec<Image>> {
-    let export = dir.join(name);
-    let before = folder_contents(&export);
-    let failed = |e: &dyn std::fmt::Display| EvalError::Mitsuba(format!("{}: {e}", dir.display()));
-    let json = mitsuba::export_mitsuba(scene, &export, spp, max_depth).map_err(|e| failed(&e))?;
-    let seed_path = |s: u32| dir.join(format!("{name}_s{s}.exr"));
-    let reuse = !before.is_empty()
-        && before == folder_contents(&export)
-        && seeds.iter().all(|&s| seed_path(s).is_file());
-    if reuse {
-        eprintln!(
-            "eval: {}: reusing the {spp}-spp renders of the identical exported scene",
-            dir.display()
-        );
-        return seeds
-            .iter()
-            .map(|&s| Ok(relight_render::read_image(&seed_path(s)).map_err(|e| failed(&e))?))
-            .collect();
-    }
-    eprintln!(
-        "eval: {}: Mitsuba 3, {spp} spp x {} seeds",
-        dir.display(),
-        seeds.len()
-    );
-    let (imgs, report) =
-        mitsuba::render_mitsuba(python, &json, &export, seeds, None).map_err(|e| failed(&e))?;
-    eprintln!("eval: {}: {report}", dir.display());
-    Ok(imgs)
+/// What Mitsuba renders: `scene` at `spp` per seed and `max_depth` (2: direct only, -1:
+/// unlimited), exported under `dir/name`, images `dir/name_s<seed>.exr`.
+#[derive(Clone, Copy)]
+pub struct Job<'a> {
+    /// The Python that runs Mitsuba ([`mitsuba_python`]).
+    pub python: &'a Path,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// The experiment's folder.
+    pub dir: &'a Path,
+    /// The export's name in it.
+    pub name: &'a str,
+    /// Samples per pixel per seed.
+    pub spp: u32,
+    /// Mitsuba's `max_depth`.
+    pub max_depth: i32,
 }
 
-/// [`render_seeds`] with two seeds, as a [`Reference`] measured over `mask`.
-///
-/// # Errors
-/// As [`render_seeds`].
-#[allow(clippy::too_many_arguments)]
-pub fn reference(
-    python: &Path,
-    scene: &Scene,
-    dir: &Path,
-    name: &str,
-    spp: u32,
-    max_depth: i32,
-    seeds: [u32; 2],
-    mask: &[bool],
-) -> Result<Reference> {
-    let imgs = render_seeds(python, scene, dir, name, spp, max_depth, &seeds)?;
-    let m = compare::metrics(&imgs[0], &imgs[1], Some(mask));
-    Ok(Reference {
-        mean: mean_image(&imgs[0], &imgs[1]),
-        seeds: imgs,
-        noise: m.rel_rmse / 2.0,
-        lum_noise: m.mean_abs_lum_err / 2.0,
-    })
+impl<'a> Job<'a> {
+    /// The experiment's main reference: export `mitsuba` in `dir`.
+    pub fn mitsuba(
+        python: &'a Path,
+        scene: &'a Scene,
+        dir: &'a Path,
+        spp: u32,
+        max_depth: i32,
+    ) -> Self {
+        Job {
+            python,
+            scene,
+            dir,
+            name: "mitsuba",
+            spp,
+            max_depth,
+        }
+    }
+
+    /// One render per seed, reusing the images of an identical earlier export (module docs).
+    ///
+    /// # Errors
+    /// Export or Mitsuba failures naming the folder.
+    pub fn render(&self, seeds: &[u32]) -> Result<Vec<Image>> {
+        let (dir, name, spp) = (self.dir, self.name, self.spp);
+        let export = dir.join(name);
+        let before = folder_contents(&export);
+        let failed =
+            |e: &dyn std::fmt::Display| EvalError::Mitsuba(format!("{}: {e}", dir.display()));
+        let json = mitsuba::export_mitsuba(self.scene, &export, spp, self.max_depth)
+            .map_err(|e| failed(&e))?;
+        let seed_path = |s: u32| dir.join(format!("{name}_s{s}.exr"));
+        let reuse = !before.is_empty()
+            && before == folder_contents(&export)
+            && seeds.iter().all(|&s| seed_path(s).is_file());
+        if reuse {
+            eprintln!(
+                "eval: {}: reusing the {spp}-spp renders of the identical exported scene",
+                dir.display()
+            );
+            return seeds
+                .iter()
+                .map(|&s| Ok(relight_render::read_image(&seed_path(s)).map_err(|e| failed(&e))?))
+                .collect();
+        }
+        eprintln!(
+            "eval: {}: Mitsuba 3, {spp} spp x {} seeds",
+            dir.display(),
+            seeds.len()
+        );
+        let (imgs, report) = mitsuba::render_mitsuba(self.python, &json, &export, seeds, None)
+            .map_err(|e| failed(&e))?;
+        eprintln!("eval: {}: {report}", dir.display());
+        Ok(imgs)
+    }
+
+    /// Two seeds' renders as a [`Reference`] measured over `mask`.
+    ///
+    /// # Errors
+    /// As [`Job::render`].
+    pub fn reference(&self, seeds: [u32; 2], mask: &[bool]) -> Result<Reference> {
+        let imgs = self.render(&seeds)?;
+        let m = compare::metrics(&imgs[0], &imgs[1], Some(mask));
+        Ok(Reference {
+            mean: mean_image(&imgs[0], &imgs[1]),
+            seeds: imgs,
+            noise: m.rel_rmse / 2.0,
+            lum_noise: m.mean_abs_lum_err / 2.0,
+        })
+    }
 }
 
 /// Every file of a folder (not recursive) by name; empty when it does not exist.

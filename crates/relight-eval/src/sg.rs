@@ -19,11 +19,11 @@
 //! Metrics are over the pixels fully covered by geometry (as `--method sh`); the Mitsuba
 //! reference is the mean of two seeds, and half their difference its own noise.
 
-use crate::reference::{coverage_mask, mean_lum, mitsuba_python, reference, stem, with_width};
+use crate::reference::{coverage_mask, mean_lum, mitsuba_python, stem, with_width, Job};
 use crate::{output, Result};
 use glam::Vec3;
 use relight_method::sg::{Sg, SgSettings};
-use relight_method::{BakeContext, BakeInput, Baked, FrameOptions, FrameSettings, Method};
+use relight_method::{Baked, FrameOptions, FrameSettings};
 use relight_render::compare::{self, Metrics};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
@@ -174,16 +174,7 @@ fn bake_and_render(
     origin: &Path,
     settings: &SgSettings,
 ) -> Result<(Baked, Image, f64)> {
-    let input = BakeInput {
-        desc,
-        scene,
-        origin,
-    };
-    let ctx = BakeContext {
-        progress: true,
-        ..Default::default()
-    };
-    let baked: Baked = Sg::bake(input, settings, 0..scene.mesh.vertex_count(), &ctx)?.into();
+    let baked = crate::bake::<Sg>(desc, scene, origin, settings)?;
     let mut frame = baked.frame(&FrameSettings::default_for(relight_method::MethodKind::Sg))?;
     frame.set_environment(&scene.env)?;
     let opts = FrameOptions {
@@ -219,7 +210,8 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
         2
     };
     let mask = coverage_mask(&scene);
-    let r = reference(python, &scene, &dir, "mitsuba", e.spp, depth, [1, 2], &mask)?;
+    let job = Job::mitsuba(python, &scene, &dir, e.spp, depth);
+    let r = job.reference([1, 2], &mask)?;
     let mean_y = mean_lum(&r.mean, &mask);
     let tm = ToneMap::Exponential {
         gamma: 1.0 / mean_y.max(1e-6) as f32,

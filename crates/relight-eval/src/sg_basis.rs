@@ -581,7 +581,6 @@ pub fn run(out: &Path) -> Result<()> {
     relight_bundle::write_atomic(&out.join("fig3-3.csv"), csv(&curves).as_bytes())?;
     relight_bundle::write_atomic(&out.join("fig3-3.md"), md.as_bytes())?;
     plot::write_png(&out.join("fig3-3.png"), &charts(&curves), 700, 500)?;
-    println!("{md}");
     eprintln!(
         "eval sg-basis: wrote {}/fig3-3.{{csv,md,png}} in {:.1} s",
         out.display(),

@@ -9,11 +9,10 @@
 //! silhouettes excluded: the background is the environment itself, not PRT). Prints a
 //! markdown table and writes it with the images.
 
-use crate::reference::{coverage_mask, mean_lum, mitsuba_python, reference, stem, with_width};
+use crate::reference::{coverage_mask, mean_lum, mitsuba_python, stem, with_width, Job};
 use crate::{output, EvalError, Result};
-use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_method::sh::{Sh, ShFrameSettings};
-use relight_method::{BakeContext, BakeInput, Baked, FrameOptions, FrameSettings, Method};
+use relight_method::{FrameOptions, FrameSettings};
 use relight_render::compare::{self, Metrics};
 use relight_render::tonemap::ToneMap;
 use relight_scene::scene_file::{EnvDesc, SceneDesc};
@@ -119,27 +118,12 @@ pub fn run(e: &ShEval) -> Result<Vec<EvalRow>> {
                 "eval: {tag}: baking order {max_order} ({} vertices)",
                 scene.mesh.vertex_count()
             );
-            let settings = ShBakeSettings {
-                order: max_order,
-                samples: e.samples,
-                seed: 1,
-                transfer: ShTransferKind::Shadowed,
-                ..Default::default()
-            };
-            let input = BakeInput {
-                desc: &desc,
-                scene: &scene,
-                origin: scene_path,
-            };
-            let ctx = BakeContext {
-                progress: true,
-                ..Default::default()
-            };
-            let n = scene.mesh.vertex_count();
-            let baked: Baked = Sh::bake(input, &settings, 0..n, &ctx)?.into();
+            let settings = crate::shadowed(max_order, e.samples);
+            let baked = crate::bake::<Sh>(&desc, &scene, scene_path, &settings)?;
             let dir = e.out.join(&tag);
             let mask = coverage_mask(&scene);
-            let r = reference(&python, &scene, &dir, "mitsuba", e.spp, 2, [1, 2], &mask)?;
+            let job = Job::mitsuba(&python, &scene, &dir, e.spp, 2);
+            let r = job.reference([1, 2], &mask)?;
             let tm = ToneMap::Exponential {
                 gamma: 1.0 / mean_lum(&r.mean, &mask).max(1e-6) as f32,
             };

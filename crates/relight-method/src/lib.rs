@@ -402,6 +402,19 @@ pub struct FrameOutput {
     pub times: FrameTimes,
 }
 
+impl FrameOutput {
+    /// The output of a frame with no per-vertex work, rasterised since `t0`.
+    pub fn rasterised_since(image: Image, t0: std::time::Instant) -> FrameOutput {
+        FrameOutput {
+            image,
+            times: FrameTimes {
+                vertex_ms: 0.0,
+                pixel_ms: ms_since(t0),
+            },
+        }
+    }
+}
+
 /// Where the time of preparing an environment went, milliseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct PrepareTimes {

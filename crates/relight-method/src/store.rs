@@ -91,6 +91,15 @@ pub struct BakedScene {
 }
 
 impl BakedScene {
+    /// The scene part of a bake of `input`.
+    pub fn of(input: &crate::BakeInput) -> BakedScene {
+        BakedScene {
+            desc: input.desc.clone(),
+            mesh: input.scene.mesh.clone(),
+            materials: input.scene.materials.clone(),
+        }
+    }
+
     /// Metadata and tensors of the scene part, with the method name, schema, version,
     /// settings and record.
     pub(crate) fn store<S: Serialize>(

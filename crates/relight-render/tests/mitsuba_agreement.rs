@@ -143,7 +143,7 @@ fn mitsuba_render(name: &str, scene: &Scene, spp: u32, max_depth: i32) -> Option
     let python = match mitsuba_python() {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("SKIP Mitsuba comparison {name}: {e}");
+            relight_scene::testdata::skip(&format!("Mitsuba comparison {name}: {e}"));
             return None;
         }
     };

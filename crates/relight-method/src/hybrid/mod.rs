@@ -8,7 +8,7 @@
 use crate::sh::frame::lighting_order;
 use crate::sh::ShBaked;
 use crate::PrepareTimes;
-use crate::{ms_since, Frame, FrameOptions, FrameOutput, FrameTimes, MethodError, MethodKind};
+use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
 use glam::Vec3;
 use relight_render::hybrid::{self, HybridLight, ShadowSettings};
 use relight_render::shade_sh;
@@ -292,13 +292,7 @@ impl Frame for HybridFrame<'_> {
             opts.supersample,
         )
         .image;
-        FrameOutput {
-            image,
-            times: FrameTimes {
-                vertex_ms: 0.0,
-                pixel_ms: ms_since(t0),
-            },
-        }
+        FrameOutput::rasterised_since(image, t0)
     }
 
     fn summary(&self) -> String {

@@ -204,11 +204,7 @@ impl Method for Sg {
             &bake_settings,
         )?;
         Ok(SgBaked {
-            scene: BakedScene {
-                desc: input.desc.clone(),
-                mesh: scene.mesh.clone(),
-                materials: scene.materials.clone(),
-            },
+            scene: BakedScene::of(&input),
             bake,
             settings: SgSettings {
                 bake: SgBakeSettings {

@@ -3,7 +3,7 @@
 
 use super::ShBaked;
 use crate::PrepareTimes;
-use crate::{ms_since, Frame, FrameOptions, FrameOutput, FrameTimes, MethodError, MethodKind};
+use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
 use glam::Vec3;
 use relight_render::raster::{self, RasterOptions};
 use relight_render::shade_sh;
@@ -130,13 +130,7 @@ impl Frame for ShFrame<'_> {
             },
         )
         .image;
-        FrameOutput {
-            image,
-            times: FrameTimes {
-                vertex_ms: 0.0,
-                pixel_ms: ms_since(t0),
-            },
-        }
+        FrameOutput::rasterised_since(image, t0)
     }
 
     fn summary(&self) -> String {

@@ -123,11 +123,7 @@ impl Method for Sh {
         .to_vec();
         let n = scene.mesh.vertex_count();
         Ok(ShBaked {
-            scene: BakedScene {
-                desc: input.desc.clone(),
-                mesh: scene.mesh.clone(),
-                materials: scene.materials.clone(),
-            },
+            scene: BakedScene::of(&input),
             albedo,
             transfer,
             settings: ShBakeSettings {
