@@ -31,6 +31,14 @@ pub enum BakeError {
     /// The mesh or its materials are inconsistent (the message says how).
     #[error("invalid scene for baking: {0}")]
     Scene(String),
+    /// The bake would need more memory than the machine has (estimated before any work).
+    #[error("the bake needs about {needed_mib} MiB, more than the {available_mib} MiB this machine has: use fewer vertices, a lower SH order or fewer lobes")]
+    Memory {
+        /// Estimated need, MiB.
+        needed_mib: u64,
+        /// Physical memory, MiB.
+        available_mib: u64,
+    },
     /// The worker thread pool could not be created.
     #[error("could not start {threads} bake threads: {message}")]
     Threads {
@@ -39,4 +47,28 @@ pub enum BakeError {
         /// The error of the thread-pool builder.
         message: String,
     },
+}
+
+/// Physical memory of this machine in bytes (`MemTotal` of `/proc/meminfo`), if known.
+pub fn physical_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuse a bake whose estimated memory `bytes` exceeds the machine's physical memory (an
+/// allocation that large would abort the process, or swap it to a halt).
+///
+/// # Errors
+/// [`BakeError::Memory`].
+pub fn check_memory(bytes: u128) -> Result<(), BakeError> {
+    let available = physical_memory().unwrap_or(u64::MAX);
+    if bytes > available as u128 {
+        return Err(BakeError::Memory {
+            needed_mib: u64::try_from(bytes >> 20).unwrap_or(u64::MAX),
+            available_mib: available >> 20,
+        });
+    }
+    Ok(())
 }

@@ -63,7 +63,7 @@ use crate::transport::{
     check_mesh, progress_bar, surface_ray, vertex_albedo, vertex_geometric_normals, with_threads,
     VertexSamples,
 };
-use crate::BakeError;
+use crate::{check_memory, BakeError};
 use glam::Vec3;
 use indicatif::ProgressBar;
 use rayon::prelude::*;
@@ -173,6 +173,11 @@ impl ShBakeSettings {
 /// has long converged for albedos below 0.9).
 pub const MAX_BOUNCES: u32 = 64;
 
+/// Largest number of directions per vertex accepted: 2^20. Beyond it the Monte Carlo noise
+/// (`~1/sqrt(samples)`) is far below what the bake's other approximations leave, and each
+/// thread keeps one ray per direction (32 bytes each).
+pub const MAX_SAMPLES: u32 = 1 << 20;
+
 impl ShBakeSettings {
     /// Check the ranges documented on each field.
     ///
@@ -183,8 +188,11 @@ impl ShBakeSettings {
         if !(1..=MAX_ORDER).contains(&self.order) {
             return err(format!("SH order {} is not in 1..={MAX_ORDER}", self.order));
         }
-        if self.samples == 0 {
-            return err("samples must be at least 1".into());
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return err(format!(
+                "samples {} is not in 1..={MAX_SAMPLES}",
+                self.samples
+            ));
         }
         if self.bounces > MAX_BOUNCES {
             return err(format!(
@@ -337,6 +345,7 @@ fn bake_with_hit_budget(
             mesh.vertex_count()
         )));
     }
+    check_memory(transfer_bytes(settings, mesh.vertex_count()))?;
     let all = 0..mesh.vertex_count();
     let (passes, pass_range) = match settings.transfer {
         ShTransferKind::Interreflected => (settings.ray_passes(), all.clone()),
@@ -638,6 +647,17 @@ impl Ctx<'_> {
             self.finish_gather(acc, albedo[v], out);
         })
     }
+}
+
+/// Bytes of the transfer of `vertices` vertices under `settings` (what one pass allocates;
+/// interreflected transfer holds three such arrays at once).
+pub fn transfer_bytes(settings: &ShBakeSettings, vertices: usize) -> u128 {
+    let per_vertex = sh_count(settings.order.min(MAX_ORDER)) * settings.transfer.channels() * 4;
+    let arrays = match settings.transfer {
+        ShTransferKind::Interreflected => 3,
+        _ => 1,
+    };
+    vertices as u128 * per_vertex as u128 * arrays
 }
 
 /// A front-facing hit of one of a vertex's rays, kept between Neumann passes (12 bytes).

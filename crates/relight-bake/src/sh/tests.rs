@@ -527,3 +527,29 @@ fn bake_bunny_figures() {
         t.validate().unwrap();
     }
 }
+
+#[test]
+fn sizes_that_drive_allocations_are_refused_before_any_work() {
+    let ok = ShBakeSettings::default();
+    let e = ShBakeSettings {
+        samples: 4_000_000_000,
+        ..ok
+    }
+    .validate()
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("samples 4000000000") && e.contains("1048576"), "{e}");
+    // Order 32 RGB transfer of 10^9 vertices: ~12 TB, refused by the memory estimate.
+    let big = ShBakeSettings {
+        order: 32,
+        transfer: ShTransferKind::Interreflected,
+        ..ok
+    };
+    let bytes = transfer_bytes(&big, 1_000_000_000);
+    assert_eq!(bytes, 1_000_000_000u128 * 1024 * 3 * 4 * 3);
+    assert!(matches!(
+        crate::check_memory(bytes),
+        Err(BakeError::Memory { .. })
+    ));
+    assert!(crate::check_memory(1 << 20).is_ok());
+}
