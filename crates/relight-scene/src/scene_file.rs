@@ -29,8 +29,8 @@
 //!
 //! # Checks
 //! A description is checked when read ([`SceneDesc::from_json`], [`SceneDesc::read`]) and
-//! again when built, and refused with an error naming the field (`shapes[1] (sphere): radius
-//! -1 must be in (0, 1e8]`):
+//! again when built, and refused with an error naming the field (`scene.json: shapes[1]
+//! (sphere): radius -1.0 must be in (0, 1e8]`):
 //! * every number must fit an `f32` (`1e39` is refused, not turned into infinity);
 //! * coordinates and lengths are finite and within [`MAX_COORDINATE`]; radii, sizes,
 //!   heights, weld distances are > 0; a box's `min` is below its `max` on every axis;
@@ -103,7 +103,8 @@ pub enum ShapeDesc {
         center: [f32; 3],
         /// Radius.
         radius: f32,
-        /// Latitude bands (default 48; longitude slices are twice that).
+        /// Latitude bands (default [`DEFAULT_RINGS`], in [`RINGS`]; longitude slices are twice
+        /// that).
         #[serde(default)]
         rings: Option<u32>,
         /// Material.
@@ -116,7 +117,7 @@ pub enum ShapeDesc {
         center: [f32; 3],
         /// Side length.
         size: f32,
-        /// Quads per side (default 32).
+        /// Quads per side (default [`DEFAULT_DIVISIONS`], in [`DIVISIONS`]).
         #[serde(default)]
         divisions: Option<u32>,
         /// Material.
@@ -243,7 +244,7 @@ impl SceneDesc {
     }
 
     /// Check every value of the description (see the module docs); the message names the
-    /// field, e.g. `shapes[1] (sphere): radius -1 must be in (0, 1e8]`.
+    /// field, e.g. `shapes[1] (sphere): radius -1.0 must be in (0, 1e8]`.
     pub fn validate(&self) -> Result<(), String> {
         if self.shapes.is_empty() {
             return Err("the scene has no shapes".into());
@@ -310,7 +311,7 @@ impl SceneDesc {
                 }
             }
             let budget = LoadOptions {
-                max_triangles: (limit - others) as usize,
+                max_triangles: limit.saturating_sub(others) as usize,
                 ..*opts
             };
             let (part, mats) = build_shape(s, &budget).map_err(|e| match e {
