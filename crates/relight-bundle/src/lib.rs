@@ -20,10 +20,25 @@
 //! `header_crc32` itself are replaced by `00000000`). Everything else (method, settings, scene
 //! description, materials) is stored as strings, JSON where structured.
 //!
-//! Files are written atomically: to `<path>.tmp-<pid>` in the same folder, flushed, then
-//! renamed over `path`, so a reader never sees a partial bundle.
+//! The tensors' `data_offsets` must tile the data section exactly, in any order: no two
+//! overlap, no byte belongs to no tensor, nothing trails the last one (the safetensors rule).
+//! A file whose checksums are right but whose layout is not is refused.
+//!
+//! Only regular files are read (a FIFO or `/dev/zero` is refused before reading), up to the
+//! size their metadata states.
+//!
+//! Files are written atomically ([`write_atomic`]): to a hidden temporary
+//! `.<name>.relight-tmp.<host>.<pid>.<random>` in the same folder, flushed, then renamed over
+//! `path`, so a reader never sees a partial bundle. A process killed while writing leaves its
+//! temporary behind; the next write into that folder removes every such temporary whose host
+//! is this machine and whose process no longer runs (`/proc/<pid>` absent), and says so on
+//! stderr, one line per file. Where `/proc` is not mounted nothing is removed. Temporaries of
+//! the former naming (`<name>.tmp-<pid>`) are removed by the next write of the same `<name>`
+//! under the same condition. relight-scene's image and mesh writers follow the same rule and
+//! naming.
 
 mod crc32;
+pub mod tmpfile;
 
 pub use crc32::{crc32, Crc32};
 
@@ -44,12 +59,15 @@ pub const MAX_HEADER_BYTES: u64 = 64 << 20;
 #[derive(Debug, thiserror::Error)]
 pub enum BundleError {
     /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    ///
+    /// The OS error is part of the message and deliberately *not* a `source()`, so that
+    /// error chains (`anyhow`'s `{:#}`) print it once.
+    #[error("{path}: {error}")]
     Io {
-        /// The file.
+        /// The file (the output, never the temporary, for writes).
         path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
+        /// The OS error (shown in the message).
+        error: std::io::Error,
     },
     /// The file is not a valid bundle (corrupt, truncated, wrong version...).
     #[error("{path}: {msg}")]
@@ -380,6 +398,7 @@ impl Bundle {
                 out.metadata.insert(k.clone(), s.to_string());
             }
         }
+        let mut spans: Vec<(u64, u64, String)> = Vec::with_capacity(header.len());
         for (name, desc) in header {
             let tbad = |msg: String| BundleError::Tensor {
                 path: path.to_path_buf(),
@@ -426,7 +445,9 @@ impl Bundle {
                     bytes: data[b as usize..e as usize].to_vec(),
                 },
             );
+            spans.push((b, e, name));
         }
+        check_tiling(&mut spans, data.len() as u64).map_err(bad)?;
         Ok(out)
     }
 
@@ -435,30 +456,98 @@ impl Bundle {
         write_atomic(path, &self.to_bytes())
     }
 
-    /// Read and verify a bundle.
+    /// Read and verify a bundle: a regular file (checked before opening and on the opened
+    /// file), read up to the size its metadata states.
     pub fn read(path: &Path) -> Result<Bundle, BundleError> {
-        let bytes = std::fs::read(path).map_err(|source| BundleError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let bytes = read_regular_file(path)?;
         Bundle::from_bytes(path, &bytes)
     }
 }
 
-/// Write `bytes` to `path` atomically: a temporary sibling file, flushed and synced, then
-/// renamed over `path`. On error the temporary file is removed and `path` is untouched.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BundleError> {
-    let io = |source| BundleError::Io {
+/// Check that the `(begin, end, name)` spans tile `0..len` exactly (sorts `spans`).
+fn check_tiling(spans: &mut [(u64, u64, String)], len: u64) -> Result<(), String> {
+    spans.sort();
+    let mut end = 0u64;
+    let mut last: Option<&(u64, u64, String)> = None;
+    for s in spans.iter() {
+        if s.0 < end {
+            let prev = last.map_or("", |p| p.2.as_str());
+            return Err(format!(
+                "tensors '{prev}' and '{}' overlap (data_offsets end {end} and begin {}): corrupt or forged",
+                s.2, s.0
+            ));
+        }
+        if s.0 > end {
+            return Err(format!(
+                "data bytes [{end}, {}) belong to no tensor: corrupt or forged",
+                s.0
+            ));
+        }
+        end = s.1;
+        last = Some(s);
+    }
+    if end != len {
+        return Err(format!(
+            "{} bytes of trailing data after the last tensor (data section {len} bytes, tensors end at {end}): corrupt or forged",
+            len - end
+        ));
+    }
+    Ok(())
+}
+
+/// Read a whole regular file: its metadata is checked before opening (a FIFO is never
+/// opened) and again on the opened file; at most the size it states is read.
+fn read_regular_file(path: &Path) -> Result<Vec<u8>, BundleError> {
+    use std::io::Read;
+    let io = |error| BundleError::Io {
         path: path.to_path_buf(),
-        source,
+        error,
+    };
+    let not_regular = |meta: &std::fs::Metadata| BundleError::Invalid {
+        path: path.to_path_buf(),
+        msg: format!(
+            "not a regular file ({}): relight reads bundles only from regular files",
+            if meta.is_dir() {
+                "a directory"
+            } else {
+                "a device, FIFO or socket"
+            }
+        ),
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_regular(&meta));
+    }
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(not_regular(&meta));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(meta.len()).read_to_end(&mut bytes).map_err(io)?;
+    Ok(bytes)
+}
+
+/// Write `bytes` to `path` atomically: a temporary sibling file, flushed and synced, then
+/// renamed over `path`. On error the temporary file is removed and `path` is untouched; the
+/// error names `path`. Stale temporaries of killed processes in the folder are removed first
+/// (see the crate docs).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BundleError> {
+    let io = |error| BundleError::Io {
+        path: path.to_path_buf(),
+        error,
     };
     let file_name = path.file_name().ok_or_else(|| BundleError::Invalid {
         path: path.to_path_buf(),
         msg: "not a file path".into(),
     })?;
-    let mut tmp_name = file_name.to_os_string();
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
+    let name = file_name.to_string_lossy();
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    tmpfile::remove_stale_temporaries(dir, &name);
+    let tmp = dir.join(tmpfile::temporary_name(&name));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
@@ -514,7 +603,10 @@ mod tests {
         let leftovers: Vec<_> = std::fs::read_dir(p.parent().unwrap())
             .unwrap()
             .filter_map(|e| e.ok())
-            .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+            .filter(|e| {
+                let n = e.file_name().to_string_lossy().to_string();
+                n.contains(".tmp-") || n.contains(tmpfile::TMP_MARKER)
+            })
             .collect();
         assert!(leftovers.is_empty());
     }
@@ -585,6 +677,172 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("absurd"), "{e}");
+    }
+
+    /// Header JSON and data assembled into bytes with valid checksums, however wrong the
+    /// layout: `tensors` are (name, shape of F32, data_offsets).
+    fn forge(tensors: &[(&str, Vec<usize>, [u64; 2])], data: &[u8]) -> Vec<u8> {
+        let mut header = Map::new();
+        for (name, shape, offs) in tensors {
+            header.insert(
+                name.to_string(),
+                serde_json::json!({"dtype": "F32", "shape": shape, "data_offsets": offs}),
+            );
+        }
+        header.insert(
+            "__metadata__".into(),
+            serde_json::json!({"format": FORMAT_NAME, "format_version": FORMAT_VERSION.to_string(),
+                "data_crc32": format!("{:08x}", crc32(data)), "header_crc32": "00000000"}),
+        );
+        let mut h = serde_json::to_string(&Value::Object(header)).unwrap();
+        while !h.len().is_multiple_of(8) {
+            h.push(' ');
+        }
+        let crc = crc32(h.as_bytes());
+        let at = h.find(HEADER_CRC_KEY).unwrap() + HEADER_CRC_KEY.len();
+        h.replace_range(at..at + 8, &format!("{crc:08x}"));
+        let mut out = (h.len() as u64).to_le_bytes().to_vec();
+        out.extend_from_slice(h.as_bytes());
+        out.extend_from_slice(data);
+        out
+    }
+
+    #[test]
+    fn valid_checksums_with_a_bad_layout_are_refused() {
+        let p = Path::new("forged.relight");
+        let data = [0u8; 32];
+        // The forgery helper itself makes readable bundles.
+        let good = forge(&[("a", vec![4], [0, 16]), ("b", vec![4], [16, 32])], &data);
+        assert_eq!(Bundle::from_bytes(p, &good).unwrap().tensors.len(), 2);
+        for (tensors, data_len, want) in [
+            (
+                vec![("a", vec![4], [0, 16]), ("b", vec![4], [8, 24])],
+                24,
+                "overlap",
+            ),
+            (
+                vec![("a", vec![4], [0, 16]), ("b", vec![4], [0, 16])],
+                16,
+                "overlap",
+            ),
+            (
+                vec![("a", vec![4], [0, 16])],
+                20,
+                "4 bytes of trailing data",
+            ),
+            (
+                vec![("a", vec![2], [0, 8]), ("b", vec![2], [16, 24])],
+                24,
+                "belong to no tensor",
+            ),
+            (
+                vec![("a", vec![2], [8, 16])],
+                16,
+                "[0, 8) belong to no tensor",
+            ),
+        ] {
+            let bytes = forge(&tensors, &data[..data_len]);
+            let e = Bundle::from_bytes(p, &bytes).unwrap_err().to_string();
+            assert!(
+                e.starts_with("forged.relight: ") && e.contains(want),
+                "{want}: {e}"
+            );
+        }
+    }
+
+    /// The error and its sources joined by ": ", as `anyhow` prints `{:#}`.
+    fn chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut cur = e.source();
+        while let Some(c) = cur {
+            s += &format!(": {c}");
+            cur = c.source();
+        }
+        s
+    }
+
+    #[test]
+    fn os_errors_print_once_in_an_error_chain() {
+        let e = Bundle::read(Path::new("/nonexistent/x.relight")).unwrap_err();
+        let s = chain(&e);
+        assert_eq!(s.matches("os error 2").count(), 1, "{s}");
+        let e = sample()
+            .write(Path::new("/nonexistent-dir/x.relight"))
+            .unwrap_err();
+        let s = chain(&e);
+        assert_eq!(s.matches("os error 2").count(), 1, "{s}");
+        // A write error names the output, not the temporary.
+        assert!(s.starts_with("/nonexistent-dir/x.relight: "), "{s}");
+    }
+
+    #[test]
+    fn special_files_are_refused_without_blocking() {
+        let d = tmp("fifo").with_file_name("fifo-dir");
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let fifo = d.join("b.relight");
+        match std::process::Command::new("mkfifo").arg(&fifo).status() {
+            Ok(s) if s.success() => {}
+            other => {
+                eprintln!("SKIP: mkfifo unavailable ({other:?})");
+                return;
+            }
+        }
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let r = (Bundle::read(&fifo), Bundle::read(Path::new("/dev/zero")));
+            let _ = tx.send(r);
+        });
+        let (a, b) = rx
+            .recv_timeout(std::time::Duration::from_secs(10))
+            .expect("reading a FIFO or /dev/zero did not return within 10 s");
+        for e in [a.unwrap_err(), b.unwrap_err()] {
+            assert!(e.to_string().contains("not a regular file"), "{e}");
+        }
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_are_removed_by_the_next_write() {
+        if !Path::new("/proc/self").exists() {
+            eprintln!("SKIP: no /proc: stale temporaries cannot be recognised here");
+            return;
+        }
+        let dead = {
+            let mut c = std::process::Command::new("true").spawn().unwrap();
+            let pid = c.id();
+            c.wait().unwrap();
+            pid
+        };
+        let d = tmp("x").with_file_name("stale-dir");
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let out = d.join("scene.relight");
+        let host = tmpfile::host_name();
+        let stale = d.join(format!(
+            ".scene.relight{}{host}.{dead}.{:016x}",
+            tmpfile::TMP_MARKER,
+            42
+        ));
+        let stale_other = d.join(format!(
+            ".other.relight{}{host}.{dead}.{:016x}",
+            tmpfile::TMP_MARKER,
+            43
+        ));
+        let legacy = d.join(format!("scene.relight.tmp-{dead}"));
+        let live = d.join(tmpfile::temporary_name("scene.relight"));
+        let foreign = d.join(format!(
+            ".scene.relight{}another-host.{dead}.{:016x}",
+            tmpfile::TMP_MARKER,
+            44
+        ));
+        for f in [&stale, &stale_other, &legacy, &live, &foreign] {
+            std::fs::write(f, b"partial bundle").unwrap();
+        }
+        sample().write(&out).unwrap();
+        assert!(!stale.exists() && !stale_other.exists() && !legacy.exists());
+        // This process's own temporaries and other hosts' are kept.
+        assert!(live.exists() && foreign.exists());
+        assert_eq!(Bundle::read(&out).unwrap(), sample());
     }
 
     #[test]

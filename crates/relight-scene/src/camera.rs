@@ -5,8 +5,13 @@
 //! `d ∝ f + (2(j+0.5)/W - 1) tan(fov/2) r + (1 - 2(i+0.5)/H) tan(fov/2) (H/W) up'`,
 //! `fov` horizontal, in degrees (Mitsuba's default `fov_axis = "x"`).
 
+use crate::mesh::MAX_COORDINATE;
 use crate::Vec3;
 use serde::{Deserialize, Serialize};
+
+/// Smallest field of view accepted, degrees: below, the image-plane scale `tan(fov / 2)` is so
+/// small that projecting points overflows.
+pub const MIN_FOV_DEG: f32 = 1e-3;
 
 /// A perspective camera (Mitsuba `perspective` sensor, `fov_axis = "x"`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,14 +52,19 @@ pub struct CameraFrame {
 }
 
 impl Camera {
-    /// Check the camera is usable: finite, distinct origin and target, up not parallel to the
-    /// view direction, fov in (0, 180), non-zero size.
+    /// Check the camera is usable: finite vectors within [`MAX_COORDINATE`], distinct origin
+    /// and target, up not parallel to the view direction, fov from [`MIN_FOV_DEG`] up to (not
+    /// including) 180 degrees, size in `1..=16384`. The message names the field.
     pub fn validate(&self) -> Result<(), String> {
         let o = Vec3::from(self.origin);
         let t = Vec3::from(self.target);
         let u = Vec3::from(self.up);
-        if !(o.is_finite() && t.is_finite() && u.is_finite()) {
-            return Err("camera vectors must be finite".into());
+        for (name, v) in [("origin", o), ("target", t), ("up", u)] {
+            if !(v.is_finite() && v.abs().max_element() <= MAX_COORDINATE) {
+                return Err(format!(
+                    "camera {name} {v} must be finite and within +-{MAX_COORDINATE:e}"
+                ));
+            }
         }
         let f = t - o;
         if f.length() <= 1e-12 {
@@ -63,9 +73,9 @@ impl Camera {
         if f.normalize().cross(u).length() <= 1e-6 {
             return Err("camera up vector is parallel to the view direction".into());
         }
-        if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
+        if !(self.fov_deg >= MIN_FOV_DEG && self.fov_deg < 180.0) {
             return Err(format!(
-                "camera fov {} is not in (0, 180) degrees",
+                "camera fov_deg {:?} is not in [{MIN_FOV_DEG}, 180) degrees",
                 self.fov_deg
             ));
         }
@@ -205,5 +215,23 @@ mod tests {
         .validate()
         .is_err());
         assert!(Camera { width: 0, ..cam() }.validate().is_err());
+    }
+
+    #[test]
+    fn validate_rejects_tiny_fov_and_huge_coordinates_naming_the_field() {
+        let e = Camera {
+            fov_deg: 1e-30,
+            ..cam()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("fov_deg") && e.contains("1e-30"), "{e}");
+        let e = Camera {
+            origin: [1e30, 0.0, 0.0],
+            ..cam()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("origin"), "{e}");
     }
 }

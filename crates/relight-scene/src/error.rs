@@ -46,13 +46,54 @@ impl fmt::Display for Location {
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The operating system refused (missing file, permission, disk full, ...).
-    #[error("{file}: {source}")]
+    ///
+    /// The OS error is part of the message and deliberately *not* a `source()`, so that
+    /// error chains (`anyhow`'s `{:#}`) print it once.
+    #[error("{file}: {error}")]
     Io {
         /// The file.
         file: String,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (shown in the message).
+        error: std::io::Error,
+    },
+    /// A path that is not a regular file (a FIFO, a device such as `/dev/zero`, a directory):
+    /// refused before reading (see `io::files`).
+    #[error("{file}: is {kind}: relight reads only regular files")]
+    NotRegularFile {
+        /// The path.
+        file: String,
+        /// What it is ("a FIFO", "a character device", ...).
+        kind: String,
+    },
+    /// A reference inside a model (glTF buffer URI, OBJ `mtllib`) that leads outside the
+    /// model's folder, refused by the default path policy (see `io::files`).
+    #[error("{model}: {what} '{reference}' leads to {resolved}, outside the model's folder {folder}: models may only refer to files in their own folder (allow with --allow-outside-paths, PathPolicy::allow_outside)")]
+    OutsideFolder {
+        /// The model file containing the reference.
+        model: String,
+        /// Which reference ("buffer 0 uri", "mtllib").
+        what: String,
+        /// The reference as written.
+        reference: String,
+        /// Where it leads.
+        resolved: String,
+        /// The model's folder.
+        folder: String,
+    },
+    /// Geometry over the triangle limit (`LoadOptions::max_triangles`), refused before it is
+    /// expanded where the format allows.
+    #[error("{at}: {}{count} triangles{} exceed the limit of {limit} triangles; raise it with --max-triangles (LoadOptions::max_triangles) if this much geometry is intended", if *at_least { "at least " } else { "" }, others_note(*others))]
+    TooManyTriangles {
+        /// The file (and line) or scene shape.
+        at: Location,
+        /// Triangles of this file or shape (a lower bound when `at_least`).
+        count: u64,
+        /// Whether reading stopped at the limit, so `count` is a lower bound.
+        at_least: bool,
+        /// Triangles of the scene's other shapes already loaded (0 for a lone file).
+        others: u64,
+        /// The limit.
+        limit: u64,
     },
     /// The file is not valid in its format (bad syntax, index out of range, truncated).
     #[error("{at}: {msg}")]
@@ -107,12 +148,20 @@ pub enum SceneError {
     },
 }
 
+fn others_note(others: u64) -> String {
+    if others == 0 {
+        String::new()
+    } else {
+        format!(" (plus {others} in the scene's other shapes)")
+    }
+}
+
 impl SceneError {
     /// An IO error on `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, error: std::io::Error) -> Self {
         SceneError::Io {
             file: path.display().to_string(),
-            source,
+            error,
         }
     }
 
@@ -154,5 +203,30 @@ impl SceneError {
             file: path.display().to_string(),
             msg: msg.into(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The error and its sources joined by ": ", as `anyhow` prints `{:#}`.
+    fn chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut cur = e.source();
+        while let Some(c) = cur {
+            s += &format!(": {c}");
+            cur = c.source();
+        }
+        s
+    }
+
+    #[test]
+    fn os_errors_print_once_in_an_error_chain() {
+        let p = Path::new("/nonexistent-relight-dir/bunny.obj");
+        let e = crate::io::load_mesh(p).unwrap_err();
+        let s = chain(&e);
+        assert_eq!(s.matches("os error 2").count(), 1, "{s}");
+        assert!(s.starts_with("/nonexistent-relight-dir/bunny.obj: "), "{s}");
     }
 }

@@ -8,6 +8,12 @@
 use crate::Vec3;
 use glam::Vec2;
 
+/// Largest coordinate magnitude (and length) a scene may use: 1e8. Normals are computed from
+/// cross products of edges, whose squared length grows as the fourth power of the edge
+/// length: edges beyond about 1e9 overflow `f32` and the normal silently becomes a fallback
+/// (+Y). 1e8 keeps a margin of 10^4 in that fourth power.
+pub const MAX_COORDINATE: f32 = 1e8;
+
 /// An indexed triangle mesh with per-vertex attributes and a material index per triangle.
 #[derive(Clone, Debug, Default)]
 pub struct TriMesh {

@@ -15,20 +15,58 @@
 //! }
 //! ```
 //!
-//! Relative paths are resolved against the scene file's folder. A shape without `material`
-//! keeps the materials of its file (OBJ/MTL, glTF) or gets the default (Lambert 0.8).
-//! Environments: `file` (any layout relight reads, optional `"layout"`: `latlong`, `cube`,
-//! `probe`), `sky` (procedural sun and sky) or `constant` (`"radiance": [r, g, b]`).
+//! A shape without `material` keeps the materials of its file (OBJ/MTL, glTF) or gets the
+//! default (Lambert 0.8). Environments: `file` (any layout relight reads, optional
+//! `"layout"`: `latlong`, `cube`, `probe`), `sky` (procedural sun and sky) or `constant`
+//! (`"radiance": [r, g, b]`).
+//!
+//! # Files a scene names
+//! Relative paths are resolved against the scene file's folder; `..` and absolute paths are
+//! allowed: a scene is a list of files its author chose (the examples use
+//! `../../shared/data/...`). The files themselves must be regular files within the size caps,
+//! and the references *inside* a model (glTF buffers, OBJ `mtllib`) may not leave the model's
+//! folder unless [`LoadOptions::paths`] allows it: the rules are in [`crate::io::files`].
+//!
+//! # Checks
+//! A description is checked when read ([`SceneDesc::from_json`], [`SceneDesc::read`]) and
+//! again when built, and refused with an error naming the field (`scene.json: shapes[1]
+//! (sphere): radius -1.0 must be in (0, 1e8]`):
+//! * every number must fit an `f32` (`1e39` is refused, not turned into infinity);
+//! * coordinates and lengths are finite and within [`MAX_COORDINATE`]; radii, sizes,
+//!   heights, weld distances are > 0; a box's `min` is below its `max` on every axis;
+//! * `rings` is in [`RINGS`], `divisions` in [`DIVISIONS`] (refused, never clamped);
+//! * light is never negative: an environment's `scale` is finite and >= 0, a constant
+//!   `radiance` finite and >= 0; angles are finite; the sky's parameters are in their ranges
+//!   ([`sky::SkyParams::validate`]); the camera passes [`Camera::validate`]; materials pass
+//!   `Material::validate`.
+//!
+//! Building counts the triangles of every procedural shape before generating it and loads
+//! each mesh with the triangles left under [`LoadOptions::max_triangles`], so the merged
+//! scene never exceeds that limit; the merged geometry must stay within
+//! [`MAX_COORDINATE`].
 
 use crate::camera::Camera;
-use crate::error::SceneError;
+use crate::error::{Location, SceneError};
+use crate::io::files::{self, LoadOptions};
 use crate::material::Material;
-use crate::mesh::TriMesh;
+use crate::mesh::{TriMesh, MAX_COORDINATE};
 use crate::scene::{Environment, Scene};
 use crate::{io, meshops, shapes, sky, Vec3};
 use relight_sphere::envmap::{EnvLayout, EnvMap};
 use serde::{Deserialize, Serialize};
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
+
+/// Accepted `rings` of a sphere (latitude bands; longitude slices are twice that). Default 48.
+pub const RINGS: RangeInclusive<u32> = 2..=2048;
+/// Accepted `divisions` of a plane (quads per side). Default 32.
+pub const DIVISIONS: RangeInclusive<u32> = 1..=2048;
+/// Default `rings` of a sphere.
+pub const DEFAULT_RINGS: u32 = 48;
+/// Default `divisions` of a plane.
+pub const DEFAULT_DIVISIONS: u32 = 32;
+/// Quads per side of each box face ([`ShapeDesc::Box`]).
+const BOX_DIVISIONS: u32 = 4;
 
 /// Uniformly scale and move a loaded mesh so its bounding box has height `height` and its
 /// bottom centre sits at `base`.
@@ -65,7 +103,8 @@ pub enum ShapeDesc {
         center: [f32; 3],
         /// Radius.
         radius: f32,
-        /// Latitude bands (default 48; longitude slices are twice that).
+        /// Latitude bands (default [`DEFAULT_RINGS`], in [`RINGS`]; longitude slices are twice
+        /// that).
         #[serde(default)]
         rings: Option<u32>,
         /// Material.
@@ -78,7 +117,7 @@ pub enum ShapeDesc {
         center: [f32; 3],
         /// Side length.
         size: f32,
-        /// Quads per side (default 32).
+        /// Quads per side (default [`DEFAULT_DIVISIONS`], in [`DIVISIONS`]).
         #[serde(default)]
         divisions: Option<u32>,
         /// Material.
@@ -171,13 +210,51 @@ pub fn parse_layout(s: &str) -> Option<EnvLayout> {
 }
 
 impl SceneDesc {
-    /// Read a scene description file.
+    /// Read a scene description file: a regular file of at most
+    /// [`files::MAX_TEXT_BYTES`], UTF-8 (a leading byte-order mark is skipped), parsed and
+    /// checked by [`SceneDesc::from_json`]; relative paths are then resolved
+    /// ([`SceneDesc::resolve_paths`]) against the file's folder.
     pub fn read(path: &Path) -> Result<SceneDesc, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-        let mut d: SceneDesc = serde_json::from_str(&text)
-            .map_err(|e| SceneError::malformed_at(path, e.line(), e.to_string()))?;
+        let bytes = files::read_file(path, files::MAX_TEXT_BYTES, "scene description")?;
+        let text = std::str::from_utf8(&bytes).map_err(|e| {
+            SceneError::malformed(path, format!("not UTF-8 text (byte {})", e.valid_up_to()))
+        })?;
+        let mut d = SceneDesc::from_json(path, text)?;
         d.resolve_paths(path.parent().unwrap_or(Path::new(".")));
         Ok(d)
+    }
+
+    /// Parse and check a description (see the module docs); `origin` names the source in
+    /// errors. A leading UTF-8 byte-order mark is skipped. Paths are left as written.
+    pub fn from_json(origin: &Path, text: &str) -> Result<SceneDesc, SceneError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let d: SceneDesc = serde_json::from_str(text)
+            .map_err(|e| SceneError::malformed_at(origin, e.line(), e.to_string()))?;
+        // Numbers beyond f32 parse as infinity above: find them, by field, in the raw JSON.
+        let raw: serde_json::Value = serde_json::from_str(text)
+            .map_err(|e| SceneError::malformed_at(origin, e.line(), e.to_string()))?;
+        if let Some((field, v)) = number_beyond_f32(&raw, String::new()) {
+            return Err(SceneError::malformed(
+                origin,
+                format!("{field}: {v} is beyond the range of a 32-bit float (+-3.4e38)"),
+            ));
+        }
+        d.validate().map_err(|m| SceneError::malformed(origin, m))?;
+        Ok(d)
+    }
+
+    /// Check every value of the description (see the module docs); the message names the
+    /// field, e.g. `shapes[1] (sphere): radius -1.0 must be in (0, 1e8]`.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.shapes.is_empty() {
+            return Err("the scene has no shapes".into());
+        }
+        for (i, s) in self.shapes.iter().enumerate() {
+            s.validate()
+                .map_err(|m| format!("{}: {m}", shape_label(i, s)))?;
+        }
+        self.environment.validate()?;
+        self.camera.validate()
     }
 
     /// Make relative file paths relative to `dir`, and absolute when the file exists (so a
@@ -201,24 +278,72 @@ impl SceneDesc {
         }
     }
 
-    /// Load every file, build every shape, and merge into a [`Scene`].
+    /// [`SceneDesc::build_with`] with the default [`LoadOptions`] (models confined to their
+    /// folder, [`files::DEFAULT_MAX_TRIANGLES`]).
     pub fn build(&self, origin: &Path) -> Result<Scene, SceneError> {
-        self.camera
-            .validate()
+        self.build_with(origin, &LoadOptions::default())
+    }
+
+    /// Check the description, load every file (as `opts` allows), build every shape, and
+    /// merge into a [`Scene`]; `origin` (the scene file) names the scene in errors. The merged
+    /// scene has at most `opts.max_triangles` triangles: procedural shapes are counted before
+    /// they are generated, and each mesh file is loaded with the triangles left.
+    pub fn build_with(&self, origin: &Path, opts: &LoadOptions) -> Result<Scene, SceneError> {
+        self.validate()
             .map_err(|m| SceneError::malformed(origin, m))?;
-        if self.shapes.is_empty() {
-            return Err(SceneError::malformed(origin, "the scene has no shapes"));
-        }
+        let limit = opts.max_triangles as u64;
         let mut mesh = TriMesh::default();
         let mut materials: Vec<Material> = Vec::new();
-        for s in &self.shapes {
-            let (part, mats) = build_shape(s)?;
+        for (i, s) in self.shapes.iter().enumerate() {
+            let others = mesh.triangle_count() as u64;
+            if let Some(n) = s.triangle_count() {
+                if others.saturating_add(n) > limit {
+                    return Err(SceneError::TooManyTriangles {
+                        at: Location {
+                            file: format!("{}: {}", origin.display(), shape_label(i, s)),
+                            line: None,
+                        },
+                        count: n,
+                        at_least: false,
+                        others,
+                        limit,
+                    });
+                }
+            }
+            let budget = LoadOptions {
+                max_triangles: limit.saturating_sub(others) as usize,
+                ..*opts
+            };
+            let (part, mats) = build_shape(s, &budget).map_err(|e| match e {
+                SceneError::TooManyTriangles {
+                    at,
+                    count,
+                    at_least,
+                    ..
+                } => SceneError::TooManyTriangles {
+                    at,
+                    count,
+                    at_least,
+                    others,
+                    limit,
+                },
+                e => e,
+            })?;
             for m in &mats {
                 m.validate()
                     .map_err(|e| SceneError::malformed(origin, format!("material: {e}")))?;
             }
             mesh.append(&part, materials.len() as u32);
             materials.extend(mats);
+        }
+        if let Some((lo, hi)) = mesh.bounds() {
+            let extent = lo.abs().max(hi.abs()).max_element();
+            if extent > MAX_COORDINATE {
+                return Err(SceneError::malformed(
+                    origin,
+                    format!("the geometry reaches {extent:e}, beyond +-{MAX_COORDINATE:e} (normals would overflow): scale the meshes down with \"fit\""),
+                ));
+            }
         }
         let env = build_env(&self.environment)?;
         Ok(Scene {
@@ -230,7 +355,235 @@ impl SceneDesc {
     }
 }
 
-fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
+/// `shapes[i] (kind)`, naming a shape in errors.
+fn shape_label(i: usize, s: &ShapeDesc) -> String {
+    let kind = match s {
+        ShapeDesc::Mesh { .. } => "mesh",
+        ShapeDesc::Sphere { .. } => "sphere",
+        ShapeDesc::Plane { .. } => "plane",
+        ShapeDesc::Table { .. } => "table",
+        ShapeDesc::Box { .. } => "box",
+    };
+    format!("shapes[{i}] ({kind})")
+}
+
+/// The first number of `v` (a JSON document) that is not a finite `f32`, with its field path
+/// (`shapes[0].center[1]`).
+fn number_beyond_f32(v: &serde_json::Value, at: String) -> Option<(String, f64)> {
+    use serde_json::Value;
+    match v {
+        Value::Number(n) => n
+            .as_f64()
+            .filter(|x| !(*x as f32).is_finite())
+            .map(|x| (at, x)),
+        Value::Array(a) => a
+            .iter()
+            .enumerate()
+            .find_map(|(i, x)| number_beyond_f32(x, format!("{at}[{i}]"))),
+        Value::Object(o) => o.iter().find_map(|(k, x)| {
+            let field = if at.is_empty() {
+                k.clone()
+            } else {
+                format!("{at}.{k}")
+            };
+            number_beyond_f32(x, field)
+        }),
+        _ => None,
+    }
+}
+
+/// `name` must be finite, > 0 and at most [`MAX_COORDINATE`].
+fn check_length(name: &str, v: f32) -> Result<(), String> {
+    if v > 0.0 && v <= MAX_COORDINATE {
+        Ok(())
+    } else {
+        Err(format!("{name} {v:?} must be in (0, {MAX_COORDINATE:e}]"))
+    }
+}
+
+/// Every component of `name` must be finite and within +-[`MAX_COORDINATE`].
+fn check_point(name: &str, v: [f32; 3]) -> Result<(), String> {
+    if v.iter().all(|x| x.abs() <= MAX_COORDINATE) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{name} {v:?} must be finite and within +-{MAX_COORDINATE:e}"
+        ))
+    }
+}
+
+/// `name`, if given, must be in `range` (stated in the error; never clamped).
+fn check_count(name: &str, v: Option<u32>, range: RangeInclusive<u32>) -> Result<(), String> {
+    match v {
+        Some(v) if !range.contains(&v) => Err(format!(
+            "{name} {v} is out of range: must be in {}..={}",
+            range.start(),
+            range.end()
+        )),
+        _ => Ok(()),
+    }
+}
+
+fn check_material(m: &Option<Material>) -> Result<(), String> {
+    match m {
+        Some(m) => m.validate().map_err(|e| format!("material: {e}")),
+        None => Ok(()),
+    }
+}
+
+impl ShapeDesc {
+    /// Check every value (see the module docs); the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        match self {
+            ShapeDesc::Mesh {
+                fit,
+                weld,
+                material,
+                ..
+            } => {
+                if let Some(f) = fit {
+                    check_point("fit.base", f.base)?;
+                    check_length("fit.height", f.height)?;
+                }
+                if let Some(w) = weld {
+                    check_length("weld", *w)?;
+                }
+                check_material(material)
+            }
+            ShapeDesc::Sphere {
+                center,
+                radius,
+                rings,
+                material,
+            } => {
+                check_point("center", *center)?;
+                check_length("radius", *radius)?;
+                check_count("rings", *rings, RINGS)?;
+                check_material(material)
+            }
+            ShapeDesc::Plane {
+                center,
+                size,
+                divisions,
+                material,
+            } => {
+                check_point("center", *center)?;
+                check_length("size", *size)?;
+                check_count("divisions", *divisions, DIVISIONS)?;
+                check_material(material)
+            }
+            ShapeDesc::Table {
+                width,
+                depth,
+                height,
+                material,
+            } => {
+                check_length("width", *width)?;
+                check_length("depth", *depth)?;
+                check_length("height", *height)?;
+                let t = table_thickness(*width, *height);
+                if !(t < *height && 2.0 * t < width.min(*depth)) {
+                    return Err(format!(
+                        "width {width}, depth {depth} and height {height} leave no room for the legs (top and legs are {t} thick: 4 % of the larger of width and height)"
+                    ));
+                }
+                check_material(material)
+            }
+            ShapeDesc::Box { min, max, material } => {
+                check_point("min", *min)?;
+                check_point("max", *max)?;
+                if !(0..3).all(|k| min[k] < max[k]) {
+                    return Err(format!(
+                        "min {min:?} must be below max {max:?} on every axis"
+                    ));
+                }
+                check_material(material)
+            }
+        }
+    }
+
+    /// Triangles the shape generates, known before generating it (`None` for a mesh file).
+    pub fn triangle_count(&self) -> Option<u64> {
+        let quads = |d: u64| 2 * d * d;
+        match self {
+            ShapeDesc::Mesh { .. } => None,
+            ShapeDesc::Sphere { rings, .. } => {
+                // `segments = 2 rings` slices; the pole bands have one triangle per slice.
+                let r = rings.unwrap_or(DEFAULT_RINGS) as u64;
+                Some(2 * (2 * r) * r.saturating_sub(1))
+            }
+            ShapeDesc::Plane { divisions, .. } => {
+                Some(quads(divisions.unwrap_or(DEFAULT_DIVISIONS) as u64))
+            }
+            ShapeDesc::Box { .. } => Some(6 * quads(BOX_DIVISIONS as u64)),
+            // The top (a box of 24 divisions) and four legs (12 divisions): `shapes::table`.
+            ShapeDesc::Table { .. } => Some(6 * quads(24) + 4 * 6 * quads(12)),
+        }
+    }
+}
+
+impl EnvDesc {
+    /// Check every value (see the module docs); the message names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        let angle = |name: &str, v: Option<f32>| match v {
+            Some(v) if !v.is_finite() => Err(format!("environment: {name} {v:?} must be finite")),
+            _ => Ok(()),
+        };
+        match self {
+            EnvDesc::File {
+                layout,
+                scale,
+                rotate_y_deg,
+                ..
+            } => {
+                if let Some(l) = layout {
+                    if parse_layout(l).is_none() {
+                        return Err(format!(
+                            "environment: unknown layout '{l}' (latlong, cube, probe)"
+                        ));
+                    }
+                }
+                if let Some(s) = scale {
+                    if !(s.is_finite() && *s >= 0.0) {
+                        return Err(format!(
+                            "environment: scale {s:?} must be finite and >= 0 (light is never negative)"
+                        ));
+                    }
+                }
+                angle("rotate_y_deg", *rotate_y_deg)
+            }
+            EnvDesc::Sky {
+                sun_elevation_deg,
+                sun_azimuth_deg,
+                turbidity,
+                ground_albedo,
+                rotate_y_deg,
+            } => {
+                sky_params(
+                    *sun_elevation_deg,
+                    *sun_azimuth_deg,
+                    *turbidity,
+                    *ground_albedo,
+                )
+                .validate()
+                .map_err(|m| format!("environment (sky): {m}"))?;
+                angle("rotate_y_deg", *rotate_y_deg)
+            }
+            EnvDesc::Constant { radiance } => {
+                if radiance.iter().all(|v| v.is_finite() && *v >= 0.0) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "environment: radiance {radiance:?} must be finite and >= 0 (light is never negative)"
+                    ))
+                }
+            }
+        }
+    }
+}
+
+/// Build one shape (already validated); mesh files are loaded with `opts`.
+fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Material>), SceneError> {
     let one = |m: &Option<Material>| vec![m.unwrap_or_default()];
     Ok(match s {
         ShapeDesc::Mesh {
@@ -239,19 +592,13 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             weld,
             material,
         } => {
-            let loaded = io::load_mesh(file)?;
+            let loaded = io::load_mesh_with(file, opts)?;
             // Loading carries on past recoverable problems; tell the user about each.
             for w in &loaded.warnings {
                 eprintln!("warning: {w}");
             }
             let mut mesh = loaded.mesh;
             if let Some(eps) = *weld {
-                if !(eps.is_finite() && eps > 0.0) {
-                    return Err(SceneError::malformed(
-                        file,
-                        format!("weld distance {eps} must be > 0"),
-                    ));
-                }
                 mesh = meshops::weld(&mesh, eps);
                 meshops::drop_degenerate(&mut mesh);
                 meshops::remove_unused_vertices(&mut mesh);
@@ -291,7 +638,7 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             rings,
             material,
         } => {
-            let r = rings.unwrap_or(48).clamp(2, 4096);
+            let r = rings.unwrap_or(DEFAULT_RINGS);
             (
                 shapes::uv_sphere(Vec3::from(*center), *radius, r, 2 * r),
                 one(material),
@@ -306,7 +653,7 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             shapes::ground_plane(
                 Vec3::from(*center),
                 *size,
-                divisions.unwrap_or(32).clamp(1, 4096),
+                divisions.unwrap_or(DEFAULT_DIVISIONS),
             ),
             one(material),
         ),
@@ -316,17 +663,11 @@ fn build_shape(s: &ShapeDesc) -> Result<(TriMesh, Vec<Material>), SceneError> {
             height,
             material,
         } => {
-            if !(*width > 0.0 && *depth > 0.0 && *height > 0.0) {
-                return Err(SceneError::malformed(
-                    Path::new("<table>"),
-                    "table width, depth and height must be > 0",
-                ));
-            }
-            let t = 0.04 * height.max(*width);
+            let t = table_thickness(*width, *height);
             (shapes::table(*width, *depth, *height, t, t), one(material))
         }
         ShapeDesc::Box { min, max, material } => (
-            shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), 4),
+            shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), BOX_DIVISIONS),
             one(material),
         ),
     })
@@ -346,8 +687,27 @@ fn shape_origin(s: &ShapeDesc) -> &Path {
     }
 }
 
-/// Build the environment of a description (loading files, rasterising the sky).
+/// The sky parameters of an [`EnvDesc::Sky`]'s fields.
+fn sky_params(elevation: f32, azimuth: f32, turbidity: f32, albedo: [f32; 3]) -> sky::SkyParams {
+    sky::SkyParams {
+        sun_elevation_deg: elevation,
+        sun_azimuth_deg: azimuth,
+        turbidity,
+        ground_albedo: Vec3::from(albedo),
+        ..sky::SkyParams::default()
+    }
+}
+
+/// Thickness of a table's top and legs.
+fn table_thickness(width: f32, height: f32) -> f32 {
+    0.04 * height.max(width)
+}
+
+/// Build the environment of a description (checked first: [`EnvDesc::validate`]; loading
+/// files, rasterising the sky).
 pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
+    d.validate()
+        .map_err(|msg| SceneError::InvalidParameter { msg })?;
     Ok(match d {
         EnvDesc::File {
             path,
@@ -355,15 +715,7 @@ pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
             scale,
             rotate_y_deg,
         } => {
-            let layout = match layout {
-                Some(l) => Some(parse_layout(l).ok_or_else(|| {
-                    SceneError::malformed(
-                        path,
-                        format!("unknown layout '{l}' (latlong, cube, probe)"),
-                    )
-                })?),
-                None => None,
-            };
+            let layout = layout.as_deref().and_then(parse_layout);
             let map = io::load_env(path, layout)?;
             Environment {
                 map,
@@ -378,13 +730,12 @@ pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
             ground_albedo,
             rotate_y_deg,
         } => {
-            let params = sky::SkyParams {
-                sun_elevation_deg: *sun_elevation_deg,
-                sun_azimuth_deg: *sun_azimuth_deg,
-                turbidity: *turbidity,
-                ground_albedo: Vec3::from(*ground_albedo),
-                ..sky::SkyParams::default()
-            };
+            let params = sky_params(
+                *sun_elevation_deg,
+                *sun_azimuth_deg,
+                *turbidity,
+                *ground_albedo,
+            );
             Environment {
                 map: sky::sun_sky_envmap(params)?,
                 scale: 1.0,
@@ -394,3 +745,6 @@ pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
         EnvDesc::Constant { radiance } => Environment::new(EnvMap::constant(Vec3::from(*radiance))),
     })
 }
+
+#[cfg(test)]
+mod tests;

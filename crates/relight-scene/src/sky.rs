@@ -73,6 +73,42 @@ impl Default for SkyParams {
     }
 }
 
+impl SkyParams {
+    /// Check every parameter is in its documented range (NaN is in no range); the message
+    /// names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        let p = self;
+        if !(0.0..=90.0).contains(&p.sun_elevation_deg) {
+            return Err(format!(
+                "sun_elevation_deg {} is not in [0, 90]",
+                p.sun_elevation_deg
+            ));
+        }
+        if !p.sun_azimuth_deg.is_finite() {
+            return Err(format!(
+                "sun_azimuth_deg {} is not finite",
+                p.sun_azimuth_deg
+            ));
+        }
+        if !(2.0..=10.0).contains(&p.turbidity) {
+            return Err(format!("turbidity {} is not in [2, 10]", p.turbidity));
+        }
+        if !(p.ground_albedo.min_element() >= 0.0 && p.ground_albedo.max_element() <= 1.0) {
+            return Err(format!(
+                "ground_albedo {} is not in [0, 1]",
+                p.ground_albedo
+            ));
+        }
+        if p.width < 4 || p.height < 3 || p.width > 16384 || p.height > 8192 {
+            return Err(format!(
+                "sky map size {}x{} is not in 4..=16384 x 3..=8192",
+                p.width, p.height
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// A Preetham sun and sky, ready to evaluate (see the module docs).
 #[derive(Clone, Debug)]
 pub struct Sky {
@@ -87,34 +123,12 @@ pub struct Sky {
 }
 
 impl Sky {
-    /// Check the parameters and precompute the model.
+    /// Check the parameters ([`SkyParams::validate`]) and precompute the model.
     pub fn new(params: SkyParams) -> Result<Sky, SceneError> {
-        let bad = |msg: String| Err(SceneError::InvalidParameter { msg });
+        params
+            .validate()
+            .map_err(|msg| SceneError::InvalidParameter { msg })?;
         let p = params;
-        if !(0.0..=90.0).contains(&p.sun_elevation_deg) {
-            return bad(format!(
-                "sun elevation {} deg is not in [0, 90]",
-                p.sun_elevation_deg
-            ));
-        }
-        if !p.sun_azimuth_deg.is_finite() {
-            return bad("sun azimuth is not finite".into());
-        }
-        if !(2.0..=10.0).contains(&p.turbidity) {
-            return bad(format!("turbidity {} is not in [2, 10]", p.turbidity));
-        }
-        if !(p.ground_albedo.min_element() >= 0.0 && p.ground_albedo.max_element() <= 1.0) {
-            return bad(format!(
-                "ground albedo {} is not in [0, 1]",
-                p.ground_albedo
-            ));
-        }
-        if p.width < 4 || p.height < 3 || p.width > 16384 || p.height > 8192 {
-            return bad(format!(
-                "sky map size {}x{} is not in 4..=16384 x 3..=8192",
-                p.width, p.height
-            ));
-        }
         let t = p.turbidity as f64;
         let theta_s = (90.0 - p.sun_elevation_deg as f64).to_radians();
         let phi = (p.sun_azimuth_deg as f64).to_radians();

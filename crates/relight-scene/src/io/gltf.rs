@@ -8,6 +8,15 @@
 //! a mirroring matrix flips the winding. A primitive without normals gets angle-weighted
 //! smooth normals. Sparse accessors and accessors without a buffer view are refused.
 //!
+//! External buffers are resolved against the glTF file's folder under the
+//! [`LoadOptions::paths`] policy (see [`super::files`]: by default a buffer `uri` may not leave
+//! that folder) and read up to their `byteLength`. Before any geometry is expanded, the
+//! triangles and vertices of every primitive of every node instance are counted from the
+//! accessors' `count`s: a file whose instancing expands beyond [`LoadOptions::max_triangles`]
+//! triangles (or three times that many vertices) is refused — 1000 nodes sharing a mesh of
+//! 1000 primitives sharing one accessor are a few kilobytes of JSON that would expand to
+//! hundreds of millions of vertices.
+//!
 //! Materials: glTF's metallic-roughness model is mapped to the nearest closed-form material,
 //! with `alpha = roughness^2` (glTF spec, Appendix B) clamped to `[1e-3, 1]`:
 //! `metallic >= 0.5` gives [`Material::GgxConductor`] with `specular = baseColor`, otherwise
@@ -15,6 +24,7 @@
 //! dielectric F0 = 0.04). Primitives without a material get `Material::default()`. A
 //! material that fails `Material::validate` (e.g. a base colour above 1) is an error.
 
+use super::files::{self, LoadOptions};
 use super::{extension, read_bytes, LoadedMesh};
 use crate::error::SceneError;
 use crate::material::Material;
@@ -130,8 +140,9 @@ impl Default for Pbr {
     }
 }
 
-/// Read a `.gltf` or `.glb` file (see the module docs).
-pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
+/// Read a `.gltf` or `.glb` file (see the module docs); `opts` gives the path policy for
+/// buffer URIs and the triangle limit.
+pub fn read_gltf(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneError> {
     let bytes = read_bytes(path)?;
     let (json, bin) = if extension(path) == "glb" || bytes.starts_with(b"glTF") {
         split_glb(path, &bytes)?
@@ -140,7 +151,7 @@ pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
     };
     let doc: Gltf = serde_json::from_slice(json)
         .map_err(|e| SceneError::malformed_at(path, e.line(), format!("JSON: {e}")))?;
-    let buffers = load_buffers(path, &doc, bin)?;
+    let buffers = load_buffers(path, &doc, bin, opts)?;
     let mut r = Reader {
         visits: 0,
         path,
@@ -169,6 +180,21 @@ pub fn read_gltf(path: &Path) -> Result<LoadedMesh, SceneError> {
             (0..doc.nodes.len()).filter(|&i| !is_child[i]).collect()
         }
     };
+    // Count what the node tree expands to before expanding it.
+    let (mut tris, mut verts, mut visits) = (0u64, 0u64, 0usize);
+    for &root in &roots {
+        r.count(root, 0, &mut visits, &mut tris, &mut verts)?;
+    }
+    opts.check_triangles(tris, false, || crate::error::Location::file(path))?;
+    if verts > 3 * opts.max_triangles as u64 {
+        return Err(SceneError::too_large(
+            path,
+            format!(
+                "{verts} vertices after instancing exceed three times the triangle limit of {}; raise it with --max-triangles (LoadOptions::max_triangles) if this is intended",
+                opts.max_triangles
+            ),
+        ));
+    }
     for root in roots {
         r.visit(root, Mat4::IDENTITY, 0, &mut mesh)?;
     }
@@ -267,9 +293,24 @@ fn split_glb<'a>(path: &Path, b: &'a [u8]) -> Result<(&'a [u8], Option<&'a [u8]>
     }
 }
 
-fn load_buffers(path: &Path, doc: &Gltf, bin: Option<&[u8]>) -> Result<Vec<Vec<u8>>, SceneError> {
+fn load_buffers(
+    path: &Path,
+    doc: &Gltf,
+    bin: Option<&[u8]>,
+    opts: &LoadOptions,
+) -> Result<Vec<Vec<u8>>, SceneError> {
     let mut out = Vec::with_capacity(doc.buffers.len());
     for (i, b) in doc.buffers.iter().enumerate() {
+        if b.byte_length as u64 > files::MAX_FILE_BYTES {
+            return Err(SceneError::too_large(
+                path,
+                format!(
+                    "buffer {i}: byteLength {} exceeds the limit of {} bytes",
+                    b.byte_length,
+                    files::MAX_FILE_BYTES
+                ),
+            ));
+        }
         let data = match &b.uri {
             None if i == 0 => bin
                 .ok_or_else(|| {
@@ -292,10 +333,17 @@ fn load_buffers(path: &Path, doc: &Gltf, bin: Option<&[u8]>) -> Result<Vec<Vec<u
                 base64_decode(payload)
                     .map_err(|m| SceneError::malformed(path, format!("buffer {i}: {m}")))?
             }
+            Some(uri) if has_scheme(uri) => {
+                return Err(SceneError::unsupported(
+                    path,
+                    format!("buffer {i}: uri '{uri}' (only relative file paths and data: URIs)"),
+                ))
+            }
             Some(uri) => {
-                let rel = uri.replace("%20", " ");
-                let file = path.parent().unwrap_or(Path::new(".")).join(rel);
-                read_bytes(&file)?
+                let what = format!("buffer {i} uri");
+                let rel = files::percent_decode(uri);
+                let file = files::resolve_model_ref(path, &rel, &opts.paths, &what)?;
+                files::read_prefix(&file, b.byte_length as u64)?
             }
         };
         if data.len() < b.byte_length {
@@ -311,6 +359,20 @@ fn load_buffers(path: &Path, doc: &Gltf, bin: Option<&[u8]>) -> Result<Vec<Vec<u
         out.push(data);
     }
     Ok(out)
+}
+
+/// Whether a URI reference starts with a scheme (`file:`, `http:`, `data:`; RFC 3986: a
+/// letter, then letters, digits, `+`, `-`, `.`, then `:`).
+fn has_scheme(uri: &str) -> bool {
+    match uri.split_once(':') {
+        Some((scheme, _)) => {
+            scheme.starts_with(|c: char| c.is_ascii_alphabetic())
+                && scheme
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+        }
+        None => false,
+    }
 }
 
 /// Decode standard base64 (padding optional, whitespace ignored).
@@ -352,6 +414,63 @@ struct Reader<'a> {
 impl Reader<'_> {
     fn err(&self, msg: String) -> SceneError {
         SceneError::malformed(self.path, msg)
+    }
+
+    /// Add the triangles and vertices that node `i` and its subtree expand to (no data is
+    /// decoded: counts come from the accessors, checked against their buffers), refusing what
+    /// [`Self::visit`] would refuse about the tree's shape.
+    fn count(
+        &self,
+        i: usize,
+        depth: usize,
+        visits: &mut usize,
+        tris: &mut u64,
+        verts: &mut u64,
+    ) -> Result<(), SceneError> {
+        let doc = self.doc;
+        *visits += 1;
+        if *visits > doc.nodes.len() || depth > MAX_DEPTH {
+            return Err(self.err(format!(
+                "node hierarchy is not a tree of depth <= {MAX_DEPTH} (cycle or shared node)"
+            )));
+        }
+        let node = doc
+            .nodes
+            .get(i)
+            .ok_or_else(|| self.err(format!("node {i} does not exist")))?;
+        if let Some(m) = node.mesh {
+            let mesh = doc
+                .meshes
+                .get(m)
+                .ok_or_else(|| self.err(format!("node {i}: mesh {m} does not exist")))?;
+            for (k, p) in mesh.primitives.iter().enumerate() {
+                if !matches!(p.mode, 4..=6) {
+                    continue;
+                }
+                // `view` checks the accessor lies within its buffer (no data is copied).
+                let acc_count = |a: usize| self.view(a).map(|(_, _, acc, _)| acc.count as u64);
+                let pos =
+                    p.attributes.get("POSITION").copied().ok_or_else(|| {
+                        self.err(format!("mesh {m} primitive {k} has no POSITION"))
+                    })?;
+                let n_vert = acc_count(pos)?;
+                let n_idx = match p.indices {
+                    Some(a) => acc_count(a)?,
+                    None => n_vert,
+                };
+                let n_tri = if p.mode == 4 {
+                    n_idx / 3
+                } else {
+                    n_idx.saturating_sub(2)
+                };
+                *tris = tris.saturating_add(n_tri);
+                *verts = verts.saturating_add(n_vert);
+            }
+        }
+        for &c in &node.children {
+            self.count(c, depth + 1, visits, tris, verts)?;
+        }
+        Ok(())
     }
 
     fn visit(
@@ -658,6 +777,7 @@ impl Reader<'_> {
 mod tests {
     use super::*;
     use crate::io::{load_mesh, test_util::temp_dir};
+    use std::path::PathBuf;
 
     fn base64_encode(b: &[u8]) -> String {
         const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -849,6 +969,195 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("not a tree"));
+    }
+
+    /// `root/model/q.gltf` whose buffer `uri` is `uri`, and the buffer at `root/outside/q.bin`.
+    fn model_and_outside_buffer(tag: &str, uri: impl Fn(&Path) -> String) -> PathBuf {
+        let root = temp_dir(tag);
+        std::fs::create_dir_all(root.join("model")).unwrap();
+        std::fs::create_dir_all(root.join("outside")).unwrap();
+        std::fs::write(root.join("outside/q.bin"), quad_bin()).unwrap();
+        let p = root.join("model/q.gltf");
+        std::fs::write(&p, quad_json(Some(&uri(&root)), 6)).unwrap();
+        p
+    }
+
+    fn allow_outside() -> LoadOptions {
+        LoadOptions {
+            paths: files::PathPolicy {
+                allow_outside: true,
+            },
+            ..LoadOptions::default()
+        }
+    }
+
+    #[test]
+    fn buffer_uri_climbing_out_of_the_folder_is_refused_unless_allowed() {
+        let p = model_and_outside_buffer("gltfdotdot", |_| "../outside/q.bin".into());
+        let e = load_mesh(&p).unwrap_err();
+        assert!(matches!(e, SceneError::OutsideFolder { .. }), "{e}");
+        assert!(
+            e.to_string().contains("buffer 0 uri '../outside/q.bin'")
+                && e.to_string().contains("--allow-outside-paths"),
+            "{e}"
+        );
+        // Percent-encoded dots climb out the same way.
+        let p2 = p.with_file_name("enc.gltf");
+        std::fs::write(&p2, quad_json(Some("%2e%2e/outside/q.bin"), 6)).unwrap();
+        assert!(matches!(
+            load_mesh(&p2).unwrap_err(),
+            SceneError::OutsideFolder { .. }
+        ));
+        // The opt-in reads it.
+        check_quad(&crate::io::load_mesh_with(&p, &allow_outside()).unwrap());
+        // Deep climbs towards system files are refused without touching them.
+        let p3 = p.with_file_name("passwd.gltf");
+        let deep = "../".repeat(40) + "etc/passwd";
+        std::fs::write(&p3, quad_json(Some(&deep), 6)).unwrap();
+        assert!(matches!(
+            load_mesh(&p3).unwrap_err(),
+            SceneError::OutsideFolder { .. }
+        ));
+    }
+
+    #[test]
+    fn absolute_buffer_uri_is_refused_unless_allowed() {
+        let p = model_and_outside_buffer("gltfabs", |root| {
+            root.join("outside/q.bin").display().to_string()
+        });
+        let e = load_mesh(&p).unwrap_err();
+        assert!(matches!(e, SceneError::OutsideFolder { .. }), "{e}");
+        check_quad(&crate::io::load_mesh_with(&p, &allow_outside()).unwrap());
+        // A URI with a scheme is refused either way.
+        let p2 = p.with_file_name("file.gltf");
+        std::fs::write(&p2, quad_json(Some("file:///etc/passwd"), 6)).unwrap();
+        for opts in [LoadOptions::default(), allow_outside()] {
+            let e = crate::io::load_mesh_with(&p2, &opts).unwrap_err();
+            assert!(matches!(e, SceneError::Unsupported { .. }), "{e}");
+        }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlink_out_of_the_folder_is_refused_unless_allowed() {
+        let p = model_and_outside_buffer("gltflink", |_| "link.bin".into());
+        let root = p.parent().unwrap().parent().unwrap().to_path_buf();
+        std::os::unix::fs::symlink(root.join("outside/q.bin"), root.join("model/link.bin"))
+            .unwrap();
+        let e = load_mesh(&p).unwrap_err();
+        assert!(matches!(e, SceneError::OutsideFolder { .. }), "{e}");
+        check_quad(&crate::io::load_mesh_with(&p, &allow_outside()).unwrap());
+        // A symlinked folder inside the model's folder leads out the same way.
+        std::os::unix::fs::symlink(root.join("outside"), root.join("model/sub")).unwrap();
+        let p2 = p.with_file_name("sub.gltf");
+        std::fs::write(&p2, quad_json(Some("sub/q.bin"), 6)).unwrap();
+        assert!(matches!(
+            load_mesh(&p2).unwrap_err(),
+            SceneError::OutsideFolder { .. }
+        ));
+        // A symlink that stays inside is fine.
+        std::fs::copy(root.join("outside/q.bin"), root.join("model/real.bin")).unwrap();
+        std::os::unix::fs::symlink("real.bin", root.join("model/inside.bin")).unwrap();
+        let p3 = p.with_file_name("inside.gltf");
+        std::fs::write(&p3, quad_json(Some("inside.bin"), 6)).unwrap();
+        check_quad(&load_mesh(&p3).unwrap());
+    }
+
+    #[test]
+    fn dev_zero_buffer_with_the_opt_in_fails_without_reading_it() {
+        if !Path::new("/dev/zero").exists() {
+            eprintln!("SKIP: no /dev/zero");
+            return;
+        }
+        let dir = temp_dir("gltfzero");
+        let p = dir.join("z.gltf");
+        // A byteLength as large as a real buffer may be: still not read from a device.
+        let json = quad_json(Some("/dev/zero"), 6)
+            .replace(r#""byteLength": 92}]"#, r#""byteLength": 4000000000}]"#);
+        std::fs::write(&p, json).unwrap();
+        let e = crate::io::test_util::within_seconds(10, move || {
+            crate::io::load_mesh_with(&p, &allow_outside()).unwrap_err()
+        });
+        assert!(matches!(e, SceneError::NotRegularFile { .. }), "{e}");
+        assert!(e.to_string().contains("/dev/zero"), "{e}");
+    }
+
+    /// 1000 nodes, each instancing one mesh of 1000 primitives that share one 300-vertex
+    /// accessor: 1e8 triangles (3e8 vertices) from about 50 KB of JSON.
+    fn instancing_bomb() -> String {
+        let mut bin = Vec::new();
+        for i in 0..300u32 {
+            let v = [(i % 3) as f32, (i / 3 % 2) as f32, (i / 6) as f32];
+            v.iter()
+                .for_each(|x| bin.extend_from_slice(&x.to_le_bytes()));
+        }
+        let prims = vec![r#"{"attributes": {"POSITION": 0}}"#; 1000].join(",");
+        let nodes = vec![r#"{"mesh": 0}"#; 1000].join(",");
+        let roots: Vec<String> = (0..1000).map(|i| i.to_string()).collect();
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [{}]}}], "nodes": [{nodes}],
+            "meshes": [{{"primitives": [{prims}]}}],
+            "buffers": [{{"uri": "data:application/octet-stream;base64,{}", "byteLength": 3600}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": 3600}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 300, "type": "VEC3"}}]}}"#,
+            roots.join(","),
+            base64_encode(&bin)
+        )
+    }
+
+    #[test]
+    fn instancing_bomb_is_refused_before_expanding() {
+        let dir = temp_dir("gltfbomb");
+        let p = dir.join("bomb.gltf");
+        let json = instancing_bomb();
+        assert!(json.len() < 60_000);
+        std::fs::write(&p, &json).unwrap();
+        let e = crate::io::test_util::within_seconds(20, move || load_mesh(&p).unwrap_err());
+        assert!(
+            matches!(
+                e,
+                SceneError::TooManyTriangles {
+                    count: 100_000_000,
+                    limit: 50_000_000,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let s = e.to_string();
+        assert!(
+            s.contains("bomb.gltf") && s.contains("50000000") && s.contains("--max-triangles"),
+            "{s}"
+        );
+    }
+
+    #[test]
+    fn triangle_limit_applies_to_a_small_gltf() {
+        let dir = temp_dir("gltflimit");
+        std::fs::write(dir.join("q.bin"), quad_bin()).unwrap();
+        let p = dir.join("q.gltf");
+        std::fs::write(&p, quad_json(Some("q.bin"), 6)).unwrap();
+        let one = LoadOptions {
+            max_triangles: 1,
+            ..LoadOptions::default()
+        };
+        let e = crate::io::load_mesh_with(&p, &one).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SceneError::TooManyTriangles {
+                    count: 2,
+                    limit: 1,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let two = LoadOptions {
+            max_triangles: 2,
+            ..LoadOptions::default()
+        };
+        check_quad(&crate::io::load_mesh_with(&p, &two).unwrap());
     }
 
     #[test]

@@ -7,6 +7,21 @@
 //! reader Mitsuba 3 uses): a texel `(r, g, b, e)` with `e != 0` is `(r, g, b) * 2^(e - 136)`,
 //! so relight and Mitsuba see the same values. The `EXPOSURE` header is ignored (as Mitsuba
 //! does). Encoding rounds to nearest: relative error at most 2^-8 of the largest channel.
+//!
+//! # Limits on reading
+//! Image files are read through [`super::files`] (regular files of at most 4 GiB). What a
+//! header announces is checked before any pixel buffer is allocated:
+//! * at most [`MAX_SIDE`] pixels per side and [`MAX_PIXELS`] pixels in all;
+//! * at least the bytes the announced size needs in the file's encoding (truncation);
+//! * an **expansion limit**: the memory decoding takes (16 bytes per pixel for RGBE: the
+//!   4-byte texels and the 12-byte `Vec3`; for OpenEXR the channel samples plus 24 bytes) may
+//!   exceed [`FREE_DECODE_BYTES`] (256 MiB) only up to [`MAX_EXPANSION`] (64) times the
+//!   file's size. Uncompressed RGBE is 4 bytes per pixel (expansion 4); run-length encoding of
+//!   photographs rarely gains a factor of 2 and large flat areas a few more, so real images
+//!   stay far below 64, while Radiance's old-style run codes let 232 KB announce a
+//!   23170 x 11585 image (4 GB decoded, an expansion of 18000) — refused.
+//!
+//! relight reads no PNG (it only writes them); a PNG reader would need the same checks.
 
 use super::{extension, read_bytes, write_atomic};
 use crate::error::SceneError;
@@ -17,6 +32,38 @@ use std::path::Path;
 pub const MAX_PIXELS: usize = 1 << 28;
 /// Largest side length accepted.
 pub const MAX_SIDE: usize = 1 << 16;
+/// Decoding memory always allowed, whatever the file's size (256 MiB: a 4096 x 4096 RGBE).
+pub const FREE_DECODE_BYTES: u64 = 256 << 20;
+/// Largest ratio of decoding memory to file size beyond [`FREE_DECODE_BYTES`] (module docs).
+pub const MAX_EXPANSION: u64 = 64;
+
+/// Refuse a `w x h` image whose decoding takes `bytes_per_pixel` per pixel when that is more
+/// than [`FREE_DECODE_BYTES`] and more than [`MAX_EXPANSION`] times `file_bytes`.
+fn check_expansion(
+    path: &Path,
+    w: usize,
+    h: usize,
+    bytes_per_pixel: u64,
+    file_bytes: u64,
+) -> Result<(), SceneError> {
+    let decoded = (w as u64)
+        .saturating_mul(h as u64)
+        .saturating_mul(bytes_per_pixel);
+    if decoded <= FREE_DECODE_BYTES || decoded / MAX_EXPANSION <= file_bytes {
+        return Ok(());
+    }
+    Err(SceneError::too_large(
+        path,
+        format!(
+            "a {w}x{h} image would take {} MiB to decode from a file of {file_bytes} bytes \
+             ({}x its size; relight allows {MAX_EXPANSION}x beyond {} MiB): the file is \
+             corrupt or a decompression bomb",
+            decoded >> 20,
+            decoded / file_bytes.max(1),
+            FREE_DECODE_BYTES >> 20
+        ),
+    ))
+}
 
 /// Read a `.hdr` or `.exr` image (dispatch on the extension) as `(width, height, pixels)`.
 pub fn read_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
@@ -142,6 +189,8 @@ fn decode_hdr(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Vec3>), Sc
             ),
         ));
     }
+    // RGBE texels + Vec3 pixels.
+    check_expansion(path, w, h, 4 + 12, bytes.len() as u64)?;
     let mut rgbe = vec![[0u8; 4]; w * h];
     let data = &bytes[pos..];
     let mut cur = 0usize;
@@ -293,7 +342,7 @@ pub fn write_hdr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Sce
         }
     }
     write_atomic(path, |tmp| {
-        std::fs::write(tmp, &out).map_err(|e| SceneError::io(tmp, e))
+        std::fs::write(tmp, &out).map_err(|e| SceneError::io(path, e))
     })
 }
 
@@ -349,10 +398,11 @@ fn check_write(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Scene
 pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
     use exr::prelude::*;
     let fail = |e: exr::error::Error| SceneError::malformed(path, format!("OpenEXR: {e}"));
-    // Check announced sizes before decoding anything.
-    let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
+    // One open, through the regular-file and size checks; then check announced sizes before
+    // decoding anything.
+    let bytes = read_bytes(path)?;
     let meta = catch(path, || {
-        exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
+        exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes[..]), false)
     })?
     .map_err(fail)?;
     let header = meta
@@ -360,7 +410,16 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
         .iter()
         .find(|h| !h.deep)
         .ok_or_else(|| SceneError::unsupported(path, "only deep-data layers"))?;
-    check_size(path, header.layer_size.0, header.layer_size.1)?;
+    let (w, h) = (header.layer_size.0, header.layer_size.1);
+    check_size(path, w, h)?;
+    // The decoder's samples, relight's f32 planes and Vec3 pixels.
+    let sample_bytes: u64 = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample() as u64)
+        .sum();
+    check_expansion(path, w, h, sample_bytes + 24, bytes.len() as u64)?;
     if header
         .channels
         .list
@@ -380,7 +439,7 @@ pub fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError> {
             .first_valid_layer()
             .all_attributes()
             .non_parallel()
-            .from_file(path)
+            .from_buffered(std::io::Cursor::new(&bytes[..]))
     })?
     .map_err(fail)?;
     let layer = &image.layer_data;
@@ -448,7 +507,7 @@ pub fn write_exr(path: &Path, w: usize, h: usize, px: &[Vec3]) -> Result<(), Sce
             .write()
             .non_parallel()
             .to_file(tmp)
-            .map_err(|e| SceneError::malformed(tmp, format!("OpenEXR write: {e}")))
+            .map_err(|e| SceneError::malformed(path, format!("OpenEXR write: {e}")))
     })
 }
 
@@ -466,12 +525,12 @@ pub fn write_png_srgb8(path: &Path, w: usize, h: usize, px: &[[u8; 3]]) -> Resul
         ));
     }
     write_atomic(path, |tmp| {
-        let file = std::fs::File::create(tmp).map_err(|e| SceneError::io(tmp, e))?;
+        let file = std::fs::File::create(tmp).map_err(|e| SceneError::io(path, e))?;
         let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w as u32, h as u32);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let err = |e: png::EncodingError| SceneError::malformed(tmp, format!("PNG write: {e}"));
+        let err = |e: png::EncodingError| SceneError::malformed(path, format!("PNG write: {e}"));
         let mut writer = enc.write_header().map_err(err)?;
         let flat: Vec<u8> = px.iter().flatten().copied().collect();
         writer.write_image_data(&flat).map_err(err)?;
@@ -584,6 +643,62 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("truncated"));
+    }
+
+    /// A Radiance file of old-style run-length scanlines: each row is one texel and two run
+    /// codes (1, 1, 1, n) repeating it, the second shifted by 8 bits: 12 bytes per row.
+    fn old_rle_hdr(w: usize, h: usize) -> Vec<u8> {
+        let n = w - 1;
+        assert!(n < 1 << 16);
+        let mut b = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n").into_bytes();
+        for _ in 0..h {
+            b.extend_from_slice(&[128, 128, 128, 129]);
+            b.extend_from_slice(&[1, 1, 1, (n & 0xff) as u8]);
+            b.extend_from_slice(&[1, 1, 1, (n >> 8) as u8]);
+        }
+        b
+    }
+
+    #[test]
+    fn hdr_old_style_rle_bomb_is_refused_by_the_expansion_limit() {
+        // 23170 x 11585 = 2^28 pixels (the pixel cap) from 139 KB: 4 GiB to decode.
+        let dir = temp_dir("hdrbomb");
+        let p = dir.join("bomb.hdr");
+        std::fs::write(&p, old_rle_hdr(23170, 11585)).unwrap();
+        let e = crate::io::test_util::within_seconds(20, move || read_image(&p).unwrap_err());
+        assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
+        assert!(
+            e.to_string().contains("bomb.hdr") && e.to_string().contains("decode"),
+            "{e}"
+        );
+        // The same encoding at a size within the free allowance decodes.
+        let p = dir.join("small.hdr");
+        std::fs::write(&p, old_rle_hdr(300, 20)).unwrap();
+        let (w, h, px) = read_image(&p).unwrap();
+        assert_eq!((w, h), (300, 20));
+        assert!(px.iter().all(|c| *c == Vec3::splat(1.0)));
+    }
+
+    #[test]
+    fn exr_announcing_far_more_pixels_than_it_holds_is_refused_before_decoding() {
+        let dir = temp_dir("exrbomb");
+        let p = dir.join("bomb.exr");
+        write_exr(&p, 4, 4, &gradient(4, 4)).unwrap();
+        let mut bytes = std::fs::read(&p).unwrap();
+        // dataWindow to 16000 x 16000: within the pixel cap, 9 GB to decode from ~400 bytes.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("dataWindow attribute")
+            + key.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&15_999i32.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&15_999i32.to_le_bytes());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = crate::io::test_util::within_seconds(20, move || read_image(&p).unwrap_err());
+        assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
+        assert!(e.to_string().contains("decode"), "{e}");
     }
 
     #[test]

@@ -8,17 +8,24 @@
 //! The per-format `read_*` functions are the raw parsers (no degenerate-triangle removal, normals
 //! possibly missing); [`load_mesh`] is the entry point that finishes and validates the mesh.
 //!
-//! Every reader checks sizes announced by a file against the bytes it actually has before
-//! allocating, and returns [`SceneError`] (never panics) on bad input. Every writer is atomic:
-//! it writes `<name>.tmp-<pid>` in the destination folder and renames it over `<name>`.
+//! Every reader opens its files through [`files`] (regular files only, bounded reads, models
+//! confined to their folder: the rules are in that module's docs), checks sizes announced by
+//! a file against the bytes it actually has and against [`LoadOptions::max_triangles`] before
+//! allocating, and returns [`SceneError`] (never panics) on bad input. Every writer is atomic
+//! ([`atomic`]): it writes a temporary `.<name>.relight-tmp.<host>.<pid>.<random>` in the
+//! destination folder and renames it over `<name>`; temporaries left by killed processes are
+//! removed by the next write into that folder.
 
+pub mod atomic;
 pub mod env;
+pub mod files;
 pub mod gltf;
 pub mod image;
 pub mod obj;
 pub mod ply;
 
 pub use env::load_env;
+pub use files::{LoadOptions, PathPolicy, DEFAULT_MAX_TRIANGLES};
 pub use image::{read_image, write_exr, write_hdr, write_png_srgb8};
 pub use ply::write_ply;
 
@@ -26,7 +33,7 @@ use crate::error::SceneError;
 use crate::material::Material;
 use crate::mesh::TriMesh;
 use crate::meshops;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A mesh read from a file with its materials (`mesh.material_ids` index `materials`).
 #[derive(Clone, Debug)]
@@ -39,17 +46,25 @@ pub struct LoadedMesh {
     pub warnings: Vec<String>,
 }
 
+/// Load a mesh with the default [`LoadOptions`] (models confined to their folder,
+/// [`DEFAULT_MAX_TRIANGLES`]); see [`load_mesh_with`].
+pub fn load_mesh(path: &Path) -> Result<LoadedMesh, SceneError> {
+    load_mesh_with(path, &LoadOptions::default())
+}
+
 /// Load a mesh, dispatching on the extension (`obj`, `ply`, `gltf`, `glb`; case-insensitive).
 ///
-/// After parsing, degenerate triangles are dropped (their number is reported in
-/// `warnings`), missing normals are computed (angle-weighted, [`meshops::smooth_normals`]),
-/// and the result must pass [`meshops::validate`]; an empty mesh is an error.
-pub fn load_mesh(path: &Path) -> Result<LoadedMesh, SceneError> {
+/// Files are opened and references inside the model followed as `opts` allows (see
+/// [`files`]); a mesh over `opts.max_triangles` is refused. After parsing, degenerate
+/// triangles are dropped (their number is reported in `warnings`), missing normals are
+/// computed (angle-weighted, [`meshops::smooth_normals`]), and the result must pass
+/// [`meshops::validate`]; an empty mesh is an error.
+pub fn load_mesh_with(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneError> {
     let ext = extension(path);
     let mut loaded = match ext.as_str() {
-        "obj" => obj::read_obj(path)?,
-        "ply" => ply::read_ply(path)?,
-        "gltf" | "glb" => gltf::read_gltf(path)?,
+        "obj" => obj::read_obj(path, opts)?,
+        "ply" => ply::read_ply(path, opts)?,
+        "gltf" | "glb" => gltf::read_gltf(path, opts)?,
         _ => {
             return Err(SceneError::unsupported(
                 path,
@@ -96,30 +111,12 @@ pub(crate) fn extension(path: &Path) -> String {
         .to_ascii_lowercase()
 }
 
-/// Read a whole file.
+/// Read a whole mesh or image file: a regular file of at most [`files::MAX_FILE_BYTES`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, SceneError> {
-    std::fs::read(path).map_err(|e| SceneError::io(path, e))
+    files::read_file(path, files::MAX_FILE_BYTES, "mesh and image")
 }
 
-/// Write a file atomically: `write` fills `<name>.tmp-<pid>` beside `path`, which is then
-/// renamed to `path` (the temporary is removed on failure).
-pub(crate) fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&Path) -> Result<(), SceneError>,
-) -> Result<(), SceneError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| SceneError::malformed(path, "output path has no file name"))?;
-    let mut tmp_name = name.to_os_string();
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp: PathBuf = path.with_file_name(tmp_name);
-    let result =
-        write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| SceneError::io(path, e)));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+pub(crate) use atomic::write_atomic;
 
 #[cfg(test)]
 pub(crate) mod test_util {
@@ -137,6 +134,36 @@ pub(crate) mod test_util {
         ));
         std::fs::create_dir_all(&dir).expect("create temp dir");
         dir
+    }
+
+    /// Run `f` on a thread and return its result, failing the test if it takes more than
+    /// `secs` seconds (a read blocked on a FIFO would hang the test otherwise).
+    pub fn within_seconds<T: Send + 'static>(
+        secs: u64,
+        f: impl FnOnce() -> T + Send + 'static,
+    ) -> T {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(f());
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(secs))
+            .unwrap_or_else(|_| panic!("did not finish within {secs} s (blocked or too slow)"))
+    }
+
+    /// Make a FIFO at `path` with `mkfifo`; `false` (with the reason printed) where that is
+    /// not possible, so the test can skip.
+    pub fn make_fifo(path: &std::path::Path) -> bool {
+        match std::process::Command::new("mkfifo").arg(path).status() {
+            Ok(s) if s.success() => true,
+            Ok(s) => {
+                eprintln!("SKIP: mkfifo failed ({s})");
+                false
+            }
+            Err(e) => {
+                eprintln!("SKIP: mkfifo not available: {e}");
+                false
+            }
+        }
     }
 }
 
@@ -156,17 +183,5 @@ mod tests {
     fn unknown_extension_is_refused() {
         let e = load_mesh(Path::new("mesh.stl")).unwrap_err();
         assert!(e.to_string().contains("stl"), "{e}");
-    }
-
-    #[test]
-    fn atomic_write_leaves_no_temporary() {
-        let dir = test_util::temp_dir("atomic");
-        let p = dir.join("out.bin");
-        write_atomic(&p, |t| {
-            std::fs::write(t, b"abc").map_err(|e| SceneError::io(t, e))
-        })
-        .unwrap();
-        assert_eq!(std::fs::read(&p).unwrap(), b"abc");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
     }
 }

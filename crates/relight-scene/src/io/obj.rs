@@ -8,9 +8,16 @@
 //! all normals are recomputed (angle-weighted).
 //!
 //! MTL: `newmtl`, `Kd`, `Ks`, `Ns`. `Kd` alone gives [`Material::Lambert`]; a non-zero `Ks`
-//! with `Ns > 0` gives [`Material::BlinnPhong`] (`exponent = Ns`). A missing MTL file or an
-//! unknown material name gives the default material and a warning, not an error.
+//! with `Ns > 0` gives [`Material::BlinnPhong`] (`exponent = Ns`). A material library that
+//! cannot be read (missing, outside the model's folder under the default
+//! [`super::PathPolicy`], not a regular file, over [`super::files::MAX_TEXT_BYTES`]) or an
+//! unknown material name gives the default material and a warning, not an error: OBJ files
+//! often name libraries that were not shipped with them.
+//!
+//! Faces beyond [`LoadOptions::max_triangles`] triangles stop the reading with
+//! [`SceneError::TooManyTriangles`] at their line.
 
+use super::files::{self, LoadOptions};
 use super::{read_bytes, LoadedMesh};
 use crate::error::SceneError;
 use crate::material::Material;
@@ -19,8 +26,9 @@ use crate::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Read an OBJ file and the MTL libraries it names (see the module docs).
-pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
+/// Read an OBJ file and the MTL libraries it names (see the module docs); `opts` gives the
+/// path policy for `mtllib` and the triangle limit.
+pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneError> {
     let text = String::from_utf8_lossy(&read_bytes(path)?).into_owned();
     let mut warnings = Vec::new();
     let (mut pos, mut tex, mut nor) = (Vec::<Vec3>::new(), Vec::<Vec2>::new(), Vec::<Vec3>::new());
@@ -92,6 +100,8 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
                         m
                     }
                 };
+                let total = (mesh.indices.len() + corners.len() - 2) as u64;
+                opts.check_triangles(total, true, || crate::error::Location::line(path, ln))?;
                 for k in 1..corners.len() - 1 {
                     mesh.indices.push([corners[0], corners[k], corners[k + 1]]);
                     mesh.material_ids.push(mat);
@@ -99,17 +109,19 @@ pub fn read_obj(path: &Path) -> Result<LoadedMesh, SceneError> {
             }
             "mtllib" => {
                 let name = line["mtllib".len()..].trim();
-                let mtl = path.parent().unwrap_or(Path::new(".")).join(name);
-                match std::fs::read(&mtl) {
-                    Ok(bytes) => library.extend(parse_mtl(
+                let read =
+                    files::resolve_model_ref(path, name, &opts.paths, "mtllib").and_then(|mtl| {
+                        Ok((files::read_file(&mtl, files::MAX_TEXT_BYTES, "MTL")?, mtl))
+                    });
+                match read {
+                    Ok((bytes, mtl)) => library.extend(parse_mtl(
                         &mtl,
                         &String::from_utf8_lossy(&bytes),
                         &mut warnings,
                     )?),
                     Err(e) => warnings.push(format!(
-                        "{}: line {ln}: material library {}: {e}; using the default material",
+                        "{}: line {ln}: material library not read: {e}; using the default material",
                         path.display(),
-                        mtl.display()
                     )),
                 }
             }
@@ -422,6 +434,41 @@ mod tests {
         assert!(e.to_string().contains("line 1"), "{e}");
         let e = load_mesh(&write(&dir, "f.obj", &format!("{QUAD}f 1 2\n"))).unwrap_err();
         assert!(e.to_string().contains("line 5"), "{e}");
+    }
+
+    #[test]
+    fn triangle_limit_stops_reading_at_the_line() {
+        let dir = temp_dir("objlimit");
+        let p = write(&dir, "l.obj", &format!("{QUAD}f 1 2 3\nf 1 2 3 4\n"));
+        let opts = |n| LoadOptions {
+            max_triangles: n,
+            ..LoadOptions::default()
+        };
+        let e = crate::io::load_mesh_with(&p, &opts(2)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SceneError::TooManyTriangles {
+                    count: 3,
+                    at_least: true,
+                    limit: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("l.obj: line 6: at least 3 triangles"),
+            "{e}"
+        );
+        assert_eq!(
+            crate::io::load_mesh_with(&p, &opts(3))
+                .unwrap()
+                .mesh
+                .triangle_count(),
+            3
+        );
     }
 
     #[test]

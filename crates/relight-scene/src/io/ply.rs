@@ -3,11 +3,13 @@
 //! Read: element `vertex` with `x y z`, optional `nx ny nz` and UVs (`u v`, `s t`,
 //! `texture_u texture_v` or `texture_s texture_t`); element `face` with a list property
 //! `vertex_indices` (or `vertex_index`), fan-triangulated. Other elements and properties are
-//! skipped. Element counts are checked against the bytes left in the file before allocating.
+//! skipped. Element counts are checked against the bytes left in the file, and against
+//! [`LoadOptions::max_triangles`] (faces; vertices: three times that), before allocating.
 //!
 //! Write: `binary_little_endian`, `float x y z nx ny nz [u v]`, `list uchar int
 //! vertex_indices` — the layout Mitsuba 3's `ply` shape reads. Material ids are not written.
 
+use super::files::LoadOptions;
 use super::{read_bytes, write_atomic, LoadedMesh};
 use crate::error::SceneError;
 use crate::mesh::TriMesh;
@@ -73,8 +75,8 @@ enum Format {
     Be,
 }
 
-/// Read a PLY file (see the module docs).
-pub fn read_ply(path: &Path) -> Result<LoadedMesh, SceneError> {
+/// Read a PLY file (see the module docs); `opts` gives the triangle limit.
+pub fn read_ply(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneError> {
     let bytes = read_bytes(path)?;
     let (format, elements, body_start, header_lines) = parse_header(path, &bytes)?;
     let body = &bytes[body_start..];
@@ -99,6 +101,22 @@ pub fn read_ply(path: &Path) -> Result<LoadedMesh, SceneError> {
                     body.len()
                 ),
             ));
+        }
+        // Every face gives at least one triangle; more vertices than three per triangle
+        // would be unused.
+        let loc = || crate::error::Location::file(path);
+        match e.name.as_str() {
+            "face" => opts.check_triangles(e.count as u64, true, loc)?,
+            "vertex" if e.count as u64 > 3 * opts.max_triangles as u64 => {
+                return Err(SceneError::too_large(
+                    path,
+                    format!(
+                        "{} vertices exceed three times the triangle limit of {}; raise it with --max-triangles (LoadOptions::max_triangles) if this is intended",
+                        e.count, opts.max_triangles
+                    ),
+                ))
+            }
+            _ => {}
         }
     }
     let mut reader = Reader {
@@ -215,6 +233,8 @@ pub fn read_ply(path: &Path) -> Result<LoadedMesh, SceneError> {
                                 .error(format!("face index {v} out of range ({nv} vertices)")))
                         }
                     };
+                    let total = (mesh.indices.len() + poly.len() - 2) as u64;
+                    opts.check_triangles(total, true, || crate::error::Location::file(path))?;
                     let first = idx(poly[0])?;
                     for k in 1..poly.len() - 1 {
                         mesh.indices.push([first, idx(poly[k])?, idx(poly[k + 1])?]);
@@ -473,14 +493,14 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), SceneError> {
         }
     }
     write_atomic(path, |tmp| {
-        std::fs::write(tmp, &out).map_err(|e| SceneError::io(tmp, e))
+        std::fs::write(tmp, &out).map_err(|e| SceneError::io(path, e))
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::{load_mesh, test_util::temp_dir};
+    use crate::io::{load_mesh, load_mesh_with, test_util::temp_dir};
 
     fn tetra() -> TriMesh {
         let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
@@ -580,6 +600,61 @@ mod tests {
         assert!(load_mesh(&p).is_err());
         std::fs::write(&p, b"ply\nformat binary_middle_endian 1.0\nend_header\n").unwrap();
         assert!(load_mesh(&p).unwrap_err().to_string().contains("line 2"));
+    }
+
+    #[test]
+    fn triangle_limit_is_checked_on_the_header_and_while_triangulating() {
+        let dir = temp_dir("plylimit");
+        let p = dir.join("a.ply");
+        // One pentagon: five vertices, one face, three triangles.
+        let pentagon = ASCII
+            .replace("element vertex 4", "element vertex 5")
+            .replace("0 1 0\n4 0 1 2 3", "0 1 0\n-1 0.5 0\n5 0 1 2 3 4");
+        std::fs::write(&p, pentagon).unwrap();
+        let opts = |n| LoadOptions {
+            max_triangles: n,
+            ..LoadOptions::default()
+        };
+        assert_eq!(
+            load_mesh_with(&p, &opts(3)).unwrap().mesh.triangle_count(),
+            3
+        );
+        // Header within the limit (1 face, 5 <= 6 vertices), triangulation beyond it.
+        let e = load_mesh_with(&p, &opts(2)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SceneError::TooManyTriangles {
+                    count: 3,
+                    limit: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        // The header alone is enough to refuse: more than three vertices per allowed
+        // triangle, or more faces.
+        let e = load_mesh_with(&p, &opts(1)).unwrap_err();
+        assert!(
+            matches!(e, SceneError::TooLarge { .. }) && e.to_string().contains("5 vertices"),
+            "{e}"
+        );
+        let two_faces = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+            element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n3 0 1 2\n3 0 2 1\n";
+        std::fs::write(&p, two_faces).unwrap();
+        let e = load_mesh_with(&p, &opts(1)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                SceneError::TooManyTriangles {
+                    count: 2,
+                    limit: 1,
+                    at_least: true,
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 
     #[test]
