@@ -126,6 +126,34 @@ pub fn orders(s: &str) -> Result<Vec<usize>> {
     Ok(out)
 }
 
+/// How scene files and the models they name are read.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SceneArgs {
+    /// Let references inside a model (glTF buffer URIs, OBJ mtllib) lead outside the model's
+    /// folder (absolute paths, `..`, symlinks out of it): refused by default.
+    #[arg(long)]
+    pub allow_outside_paths: bool,
+    /// Most triangles a mesh file, and the whole scene, may have (counted before expanding
+    /// glTF instancing or generating shapes).
+    #[arg(long, default_value_t = relight_scene::io::files::DEFAULT_MAX_TRIANGLES)]
+    pub max_triangles: usize,
+}
+
+impl SceneArgs {
+    /// Read and build the scene at `path`.
+    pub fn load(&self, path: &Path) -> Result<(SceneDesc, relight_scene::scene::Scene)> {
+        let opts = relight_scene::io::LoadOptions {
+            paths: relight_scene::io::PathPolicy {
+                allow_outside: self.allow_outside_paths,
+            },
+            max_triangles: self.max_triangles,
+        };
+        let desc = SceneDesc::read(path)?;
+        let scene = desc.build_with(path, &opts)?;
+        Ok((desc, scene))
+    }
+}
+
 /// Options that choose an environment map and how it is placed.
 #[derive(clap::Args, Clone, Debug)]
 pub struct EnvArgs {
@@ -140,7 +168,7 @@ pub struct EnvArgs {
     #[arg(long, alias = "rotate-y", allow_negative_numbers = true)]
     pub rotate_env: Option<f32>,
     /// Multiply the environment's radiance (a finite number >= 0).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub env_scale: Option<f32>,
 }
 

@@ -9,7 +9,6 @@ use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::{BakeContext, BakeInput, Baked, Method, MethodKind};
 use relight_scene::material::Material;
-use relight_scene::scene_file::SceneDesc;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -45,6 +44,9 @@ pub struct Args {
     /// Ray-casting back-end: embree or bvh (default: the fastest in this build).
     #[arg(long)]
     pub backend: Option<String>,
+    /// How the scene is read.
+    #[command(flatten)]
+    pub read: args::SceneArgs,
     /// SH options.
     #[command(flatten)]
     pub sh: ShBakeSettings,
@@ -137,8 +139,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         f16: a.f16,
         progress: true,
     };
-    let desc = SceneDesc::read(&a.scene)?;
-    let scene = desc.build(&a.scene)?;
+    let (desc, scene) = a.read.load(&a.scene)?;
     let input = BakeInput {
         desc: &desc,
         scene: &scene,

@@ -4,10 +4,12 @@ use crate::args::{self, Out};
 use anyhow::{anyhow, ensure, Result};
 use relight_render::pathtrace::{self, PtSettings};
 use relight_render::write_image;
-use relight_scene::scene_file::SceneDesc;
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
+
+/// Most samples per pixel of `relight reference` (2^20).
+const MAX_SPP: u32 = 1 << 20;
 
 /// Arguments of `relight reference`.
 #[derive(clap::Args)]
@@ -32,20 +34,31 @@ pub struct Args {
     /// Tone map for PNG outputs.
     #[arg(long, default_value = "exp:1")]
     pub tonemap: String,
+    /// How the scene is read.
+    #[command(flatten)]
+    pub read: args::SceneArgs,
 }
 
 /// Run `relight reference`.
 pub fn run(a: Args, out: &Out) -> Result<()> {
     let tm = args::tonemap(&a.tonemap)?;
-    ensure!(a.spp >= 1, "--spp must be at least 1");
+    ensure!(
+        (1..=MAX_SPP).contains(&a.spp),
+        "--spp {} is not in 1..={MAX_SPP}",
+        a.spp
+    );
     ensure!(
         a.max_depth >= -1,
         "--max-depth {} is not -1 (unlimited) or >= 0",
         a.max_depth
     );
     args::check_image_outputs(&a.out, &[&a.scene])?;
-    let desc = SceneDesc::read(&a.scene)?;
-    let scene = desc.build(&a.scene)?;
+    let (_, scene) = a.read.load(&a.scene)?;
+    let opts = relight_method::FrameOptions {
+        supersample: 1,
+        background: a.background,
+    };
+    relight_method::check_frame_options(&opts, &scene.camera)?;
     let t0 = Instant::now();
     let caster = relight_scene::accel::build(&scene.mesh, args::backend(None)?)
         .map_err(|e| anyhow!("{}: {e}", a.scene.display()))?;
@@ -85,12 +98,14 @@ pub struct ExportArgs {
     /// Mitsuba max_depth (2 = direct only, -1 = unlimited).
     #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
     pub max_depth: i32,
+    /// How the scene is read.
+    #[command(flatten)]
+    pub read: args::SceneArgs,
 }
 
 /// Run `relight export-mitsuba`.
 pub fn export(a: ExportArgs, out: &Out) -> Result<()> {
-    let desc = SceneDesc::read(&a.scene)?;
-    let scene = desc.build(&a.scene)?;
+    let (_, scene) = a.read.load(&a.scene)?;
     std::fs::create_dir_all(&a.out).map_err(|e| anyhow!("{}: {e}", a.out.display()))?;
     let json = relight_render::mitsuba::export_mitsuba(&scene, &a.out, a.spp, a.max_depth)
         .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;

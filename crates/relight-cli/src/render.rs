@@ -111,7 +111,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         supersample: a.supersample,
         background: a.background,
     };
-    relight_method::check_frame_options(&opts)?;
+    relight_method::check_frame_options(&opts, &camera)?;
     let mut frame = baked
         .frame_of(&settings, &a.bundle)
         .with_context(|| format!("--method {}", method.name()))?;

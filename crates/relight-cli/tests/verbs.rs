@@ -333,12 +333,33 @@ fn no_build_tree_paths_outside_tests() {
 #[test]
 fn bench_json_lists_every_section_with_numbers() {
     // The smallest run: a smoke test of the report's shape, not a measurement.
-    let o = relight(&["bench", "--quick", "--rays", "5000", "--relight-vertices", "5000", "--json"]);
+    let o = relight(&[
+        "bench",
+        "--quick",
+        "--rays",
+        "5000",
+        "--relight-vertices",
+        "5000",
+        "--json",
+    ]);
     let v = json(&o);
     let sections = v["sections"].as_array().unwrap();
-    let titles: Vec<&str> = sections.iter().map(|s| s["title"].as_str().unwrap()).collect();
-    for want in ["Ray throughput", "SH bake", "SH relight", "Hybrid frame", "Gaussian-prefiltered", "SG frame"] {
-        assert!(titles.iter().any(|t| t.starts_with(want)), "{want} missing: {titles:?}");
+    let titles: Vec<&str> = sections
+        .iter()
+        .map(|s| s["title"].as_str().unwrap())
+        .collect();
+    for want in [
+        "Ray throughput",
+        "SH bake",
+        "SH relight",
+        "Hybrid frame",
+        "Gaussian-prefiltered",
+        "SG frame",
+    ] {
+        assert!(
+            titles.iter().any(|t| t.starts_with(want)),
+            "{want} missing: {titles:?}"
+        );
     }
     for s in sections {
         let cols = s["columns"].as_array().unwrap().len();

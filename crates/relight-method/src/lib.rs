@@ -447,16 +447,36 @@ pub trait Frame {
     fn summary(&self) -> String;
 }
 
-/// Check [`FrameOptions`] from user input.
+/// Most pixels of a rendered image: 2^26 (8192 x 8192; 768 MiB of linear RGB).
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
+/// Most rasteriser samples of a frame, pixels x supersample^2: 2^28 (about 8 GiB of
+/// G-buffer at its ~32 bytes per sample).
+pub const MAX_FRAME_SAMPLES: u64 = 1 << 28;
+
+/// Check [`FrameOptions`] and the image size of `camera` from user input, before any
+/// allocation.
 ///
 /// # Errors
-/// [`MethodError::Settings`] naming the option.
-pub fn check_frame_options(o: &FrameOptions) -> Result<(), MethodError> {
+/// [`MethodError::Settings`] naming the option and the limit.
+pub fn check_frame_options(o: &FrameOptions, camera: &Camera) -> Result<(), MethodError> {
+    let err = |m: String| Err(MethodError::Settings(m));
     if !(1..=16).contains(&o.supersample) {
-        return Err(MethodError::Settings(format!(
-            "supersample {} is not in 1..=16",
-            o.supersample
-        )));
+        return err(format!("supersample {} is not in 1..=16", o.supersample));
+    }
+    let pixels = camera.width as u64 * camera.height as u64;
+    if pixels > MAX_IMAGE_PIXELS {
+        return err(format!(
+            "{} x {} pixels is more than the {MAX_IMAGE_PIXELS} (8192 x 8192) a frame may have",
+            camera.width, camera.height
+        ));
+    }
+    let samples = pixels * (o.supersample as u64).pow(2);
+    if samples > MAX_FRAME_SAMPLES {
+        return err(format!(
+            "{} x {} pixels x {}^2 samples per pixel is more than the {MAX_FRAME_SAMPLES} samples a frame may have: lower the size or --supersample",
+            camera.width, camera.height, o.supersample
+        ));
     }
     Ok(())
 }

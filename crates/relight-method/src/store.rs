@@ -137,6 +137,8 @@ impl BakedScene {
     /// Read and check the scene part of a bundle read from `path`.
     pub(crate) fn load(r: &TensorReader) -> Result<BakedScene, MethodError> {
         let desc: SceneDesc = r.json("scene")?;
+        desc.validate()
+            .map_err(|e| r.invalid(format!("metadata 'scene': {e}")))?;
         let materials: Vec<Material> = r.json("materials")?;
         for m in &materials {
             m.validate()

@@ -250,3 +250,26 @@ fn hybrid_without_lights_is_the_sh_frame() {
     let lit = sh.pixels.iter().filter(|p| p.max_element() > 0.0).count();
     assert!(lit > sh.pixels.len() / 4, "{lit}");
 }
+
+#[test]
+fn frame_sizes_are_checked_before_allocating() {
+    let mut c = desc().camera;
+    let o = FrameOptions::default();
+    assert!(crate::check_frame_options(&o, &c).is_ok());
+    (c.width, c.height) = (16384, 16384);
+    let e = crate::check_frame_options(&o, &c).unwrap_err().to_string();
+    assert!(e.contains("16384 x 16384"), "{e}");
+    (c.width, c.height) = (8192, 8192);
+    let e = crate::check_frame_options(&o, &c).unwrap_err().to_string();
+    assert!(e.contains("--supersample"), "{e}");
+    let one = FrameOptions {
+        supersample: 1,
+        ..o
+    };
+    assert!(crate::check_frame_options(&one, &c).is_ok());
+    let zero = FrameOptions {
+        supersample: 0,
+        ..o
+    };
+    assert!(crate::check_frame_options(&zero, &c).is_err());
+}
