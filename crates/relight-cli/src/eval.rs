@@ -2,7 +2,7 @@
 //! `relight-eval`; this parses their options).
 
 use crate::args::{self, arg_names, named, refuse_foreign, Out};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, ensure, Context, Result};
 use clap::ArgMatches;
 use relight_bake::sg::SgBakeSettings;
 use relight_eval::{hybrid, sg, sg_basis, sh};
@@ -117,6 +117,14 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Sh, Hybrid, Sg], named(&["width", "spp", "examples"])),
         ],
     )?;
+    ensure!(
+        (1..=1 << 20).contains(&a.spp),
+        "--spp {} is not in 1..=1048576",
+        a.spp
+    );
+    if let Some(w) = a.width {
+        ensure!((8..=8192).contains(&w), "--width {w} is not in 8..=8192");
+    }
     let orders = |default: &str| args::orders(a.sh_orders.as_deref().unwrap_or(default));
     match a.method {
         Sh => {

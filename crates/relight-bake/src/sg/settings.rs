@@ -11,6 +11,12 @@ pub const MAX_LOBES: usize = 10;
 /// Largest cube-map face size accepted (6x256x256 texels per view is already 36 MB per vertex).
 pub const MAX_CUBE_RES: usize = 256;
 
+/// Largest number of indirect paths per (vertex, view): 2^20.
+pub const MAX_PATHS: u32 = 1 << 20;
+
+/// Largest number of flood-fill regions (each holds one vertex's transport while it runs).
+pub const MAX_REGIONS: usize = 1 << 16;
+
 /// Largest number of bounces of an indirect path.
 pub const MAX_DEPTH: u32 = 64;
 
@@ -39,6 +45,12 @@ impl SgFitSettings {
         let err = |m: String| Err(BakeError::Settings(m));
         if self.max_iterations == 0 {
             return err("fit.max_iterations must be at least 1".into());
+        }
+        if self.regions > MAX_REGIONS {
+            return err(format!(
+                "fit.regions {} is not in 0..={MAX_REGIONS}",
+                self.regions
+            ));
         }
         for (name, w) in [
             ("fit.mean_weight", self.mean_weight),
@@ -111,8 +123,11 @@ impl SgBakeSettings {
                     self.indirect_res
                 ));
             }
-            if self.indirect_paths == 0 {
-                return err("indirect_paths must be at least 1".into());
+            if !(1..=MAX_PATHS).contains(&self.indirect_paths) {
+                return err(format!(
+                    "indirect_paths {} is not in 1..={MAX_PATHS}",
+                    self.indirect_paths
+                ));
             }
             if !(1..=MAX_DEPTH).contains(&self.max_depth) {
                 return err(format!(
@@ -211,5 +226,37 @@ mod tests {
         }
         .validate()
         .unwrap();
+    }
+
+    #[test]
+    fn sizes_that_drive_work_are_bounded() {
+        let s = SgBakeSettings::default();
+        let e = SgBakeSettings {
+            indirect_paths: 4_000_000_000,
+            ..s
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("indirect_paths 4000000000"), "{e}");
+        let e = SgBakeSettings {
+            fit: SgFitSettings {
+                regions: usize::MAX,
+                ..s.fit
+            },
+            ..s
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("fit.regions"), "{e}");
+        let e = SgBakeSettings {
+            direct_res: 4096,
+            ..s
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("direct_res 4096"), "{e}");
     }
 }
