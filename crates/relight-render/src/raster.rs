@@ -952,44 +952,6 @@ mod tests {
             );
         }
     }
-}
-/// Timing for the report: `cargo test --release -p relight-render raster_timing -- --ignored
-/// --nocapture`.
-#[cfg(test)]
-mod perf {
-    use super::*;
-
-    #[test]
-    #[ignore]
-    fn raster_timing() {
-        let mut mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 500, 1000);
-        let plane = relight_scene::shapes::ground_plane(Vec3::new(0.0, -1.0, 0.0), 10.0, 200);
-        mesh.append(&plane, 0);
-        let rad = vec![Vec3::splat(0.5); mesh.vertex_count()];
-        let camera = Camera {
-            origin: [0.0, 1.0, 4.0],
-            target: [0.0; 3],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 50.0,
-            width: 1024,
-            height: 768,
-        };
-        for ss in [1, 4] {
-            let t0 = std::time::Instant::now();
-            let opts = RasterOptions { supersample: ss };
-            std::hint::black_box(render_with(&mesh, &camera, &rad, None, &opts));
-            let ms = t0.elapsed().as_secs_f64() * 1e3;
-            println!(
-                "{} triangles, 1024x768, supersample {ss}: {ms:.1} ms",
-                mesh.triangle_count()
-            );
-        }
-    }
-}
-
-#[cfg(test)]
-mod gbuffer_tests {
-    use super::*;
 
     fn tilted_quad() -> (TriMesh, Camera) {
         let corners = [

@@ -398,28 +398,4 @@ mod tests {
         );
         assert_eq!(b.bytes_per_frame, 20_000 * (4 * 9 + 24));
     }
-
-    /// Figures for the report: `cargo test --release -p relight-render bench_relight_figures
-    /// -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn bench_relight_figures() {
-        for (v, order) in [
-            (1_000_000, 3),
-            (1_000_000, 5),
-            (1_000_000, 10),
-            (100_000, 5),
-        ] {
-            let b = bench_relight(v, order);
-            println!(
-                "{v} vertices, order {order}: {:.2} ms/frame, {:.1} MB/frame, {:.2} GB/s achieved, STREAM copy {:.2} GB/s, ratio {:.2}, {} threads",
-                b.ms_per_frame,
-                b.bytes_per_frame as f64 / 1e6,
-                b.bytes_per_frame as f64 / b.ms_per_frame / 1e6,
-                b.stream_copy_gbps,
-                b.ratio_to_bandwidth_bound,
-                b.threads
-            );
-        }
-    }
 }
