@@ -13,7 +13,7 @@
 //! (one multiply-add of the RGB triple, four accumulators to hide add latency). That portable
 //! single-channel kernel turned out compute-bound (about 40 cycles per order-5 vertex per core,
 //! the same in and out of cache), so on CPUs with AVX2 and FMA a run-time-selected kernel
-//! (`shade_sh_avx2.rs`: 8-wide fused multiply-adds against zero-padded light planes) does the
+//! (`shade_sh/avx2.rs`: 8-wide fused multiply-adds against zero-padded light planes) does the
 //! single-channel case, which makes a frame memory-bandwidth bound: [`bench_relight`] measures
 //! it against a STREAM-like copy (McCalpin's STREAM "Copy" kernel, bytes counted as read +
 //! written) on the same
@@ -29,7 +29,6 @@ use std::time::Instant;
 const CHUNK: usize = 2048;
 
 #[cfg(target_arch = "x86_64")]
-#[path = "shade_sh_avx2.rs"]
 mod avx2;
 
 /// `RELIGHT_PORTABLE_KERNELS=1` disables the run-time-selected SIMD kernels (for comparisons

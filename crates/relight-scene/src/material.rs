@@ -21,7 +21,6 @@
 //!   [`microfacet::PlasticTables`]); specular vs diffuse sampling as Mitsuba's
 //!   `specular_sampling_weight`.
 
-#[path = "microfacet.rs"]
 pub mod microfacet;
 
 use crate::Vec3;

@@ -23,8 +23,6 @@
 //!   threads.
 
 mod kernel;
-#[cfg(test)]
-mod tests;
 
 use super::SgBakeSettings;
 use crate::transport::{check_mesh_geometry, surface_ray, vertex_geometric_normals};
@@ -558,3 +556,6 @@ impl TransportSource for TransportContext<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -212,7 +212,7 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
 
     #[test]

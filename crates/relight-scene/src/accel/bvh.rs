@@ -38,6 +38,8 @@
 use crate::mesh::TriMesh;
 use crate::Vec3;
 
+mod traverse;
+
 /// Largest number of triangles in a leaf: one SoA pack.
 pub const LEAF_MAX: usize = 4;
 /// Depth below which binary splits are object medians instead of SAH (bounds the stack).
@@ -591,9 +593,5 @@ fn slot_box(n: &Node8, s: usize) -> Aabb {
     }
 }
 
-#[path = "bvh_traverse.rs"]
-mod traverse;
-
 #[cfg(test)]
-#[path = "bvh_tests.rs"]
 pub(crate) mod tests;
