@@ -62,7 +62,7 @@ use relight_sphere::envmap::{EnvLayout, EnvMap};
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sh;
-use relight_sphere::sh_rotate::ShRotation;
+use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
 mod bench;

@@ -64,10 +64,10 @@
 //! point-rule leakage of a constant is at rounding level (its texels are symmetric under the
 //! octahedral group); the probe's is about 1e-3 of `L_00` for a 48-pixel probe.
 
+use super::rotate::ShRotation;
+use super::{sh_count, sh_index, MAX_ORDER};
 use crate::envmap::{EnvLayout, EnvMap};
 use crate::quadrature::gauss_legendre;
-use crate::sh::{sh_count, sh_index, MAX_ORDER};
-use crate::sh_rotate::ShRotation;
 use crate::{Mat3, Vec3};
 use std::f64::consts::PI;
 
