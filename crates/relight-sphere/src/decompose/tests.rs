@@ -57,6 +57,9 @@ fn settings_validate() {
             ..Default::default()
         },
     ];
+    let e = bad[0].validate().unwrap_err();
+    assert_eq!(e, DecomposeSettingsError::ShOrder(0));
+    assert!(e.to_string().starts_with("sh_order 0 "), "{e}");
     for b in bad {
         assert!(b.validate().is_err(), "{b:?}");
         let m = EnvMap::constant(Vec3::ONE);
