@@ -431,21 +431,30 @@ fn validation_rejects_bad_settings_and_layouts() {
         data: vec![0.0; 8],
     };
     assert!(t.validate().is_ok());
-    assert!(ShTransfer {
+    let short = ShTransfer {
         data: vec![0.0; 7],
         ..t.clone()
-    }
-    .validate()
-    .is_err());
-    assert!(ShTransfer {
-        channels: 3,
-        ..t.clone()
-    }
-    .validate()
-    .is_err());
+    };
+    assert_eq!(
+        short.validate().unwrap_err().to_string(),
+        "data has 7 floats, expected 2 vertices x 4 coefficients x 1 channels = 8"
+    );
+    assert_eq!(
+        ShTransfer {
+            channels: 3,
+            ..t.clone()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string(),
+        "Shadowed transfer must have 1 channels, has 3"
+    );
     let mut nan = t.clone();
     nan.data[5] = f32::NAN;
-    assert!(nan.validate().unwrap_err().contains("vertex 1"));
+    assert_eq!(
+        nan.validate(),
+        Err(ShTransferError::NonFinite { vertex: 1 })
+    );
     // A material id out of range is a scene error, not a panic.
     let mesh = ground_plane(Vec3::ZERO, 1.0, 1);
     let caster = build_default(&mesh);

@@ -476,17 +476,23 @@ fn materials_per_vertex_and_blends() {
     }
     let g = blend_materials(&conductor(0.01), &conductor(1.0), 0.5).unwrap();
     assert!(matches!(g, Material::GgxConductor { alpha, .. } if (alpha - 0.1).abs() < 1e-5));
-    assert!(blend_materials(&a, &conductor(0.3), 0.5)
-        .unwrap_err()
-        .contains("different kinds"));
-    assert!(blend_materials(&a, &b, 1.5).is_err());
+    let e = blend_materials(&a, &conductor(0.3), 0.5).unwrap_err();
+    assert_eq!(e, BlendError::DifferentKinds(a, conductor(0.3)));
+    assert!(e.to_string().contains("different kinds"), "{e}");
+    assert_eq!(
+        blend_materials(&a, &b, 1.5),
+        Err(BlendError::Parameter(1.5))
+    );
     // Along X: t = 0 at x = -2, 1 at x = 2; vertex 4 (x = 0) halfway.
     let blended = blend_along_axis(&mesh, &a, &b, Vec3::X * 3.0).unwrap();
     for (p, m) in mesh.positions.iter().zip(&blended) {
         let t = (p.x + 2.0) / 4.0;
         assert_eq!(*m, blend_materials(&a, &b, t).unwrap(), "{p}");
     }
-    assert!(blend_along_axis(&mesh, &a, &b, Vec3::ZERO).is_err());
+    assert_eq!(
+        blend_along_axis(&mesh, &a, &b, Vec3::ZERO),
+        Err(BlendError::Axis(Vec3::ZERO))
+    );
     // Flat across the axis: t = 0 everywhere.
     assert!(blend_along_axis(&mesh, &a, &b, Vec3::Y)
         .unwrap()
