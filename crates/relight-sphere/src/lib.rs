@@ -52,8 +52,6 @@
 //! assert!((sh::eval_rgb(&flipped, -Vec3::Y) - sh::eval_rgb(&radiance, Vec3::Y)).length() < 1e-4);
 //! ```
 
-#![warn(missing_docs)]
-
 pub use glam::{Mat3, Quat, Vec2, Vec3};
 
 pub mod basis;
