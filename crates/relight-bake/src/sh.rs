@@ -262,34 +262,73 @@ impl ShTransfer {
     /// values.
     ///
     /// # Errors
-    /// A message naming the first violated invariant.
-    pub fn validate(&self) -> Result<(), String> {
+    /// The first violated invariant.
+    pub fn validate(&self) -> Result<(), ShTransferError> {
         if !(1..=MAX_ORDER).contains(&self.order) {
-            return Err(format!("order {} is not in 1..={MAX_ORDER}", self.order));
+            return Err(ShTransferError::Order(self.order));
         }
         if self.channels != self.kind.channels() {
-            return Err(format!(
-                "{:?} transfer must have {} channels, has {}",
-                self.kind,
-                self.kind.channels(),
-                self.channels
-            ));
+            return Err(ShTransferError::Channels {
+                kind: self.kind,
+                channels: self.channels,
+            });
         }
-        let expect = self.vertex_count * self.stride();
-        if self.data.len() != expect {
-            return Err(format!(
-                "data has {} floats, expected {} vertices x {} coefficients x {} channels = {expect}",
-                self.data.len(),
-                self.vertex_count,
-                self.coeff_count(),
-                self.channels
-            ));
+        let expected = self.vertex_count * self.stride();
+        if self.data.len() != expected {
+            return Err(ShTransferError::Length {
+                len: self.data.len(),
+                vertices: self.vertex_count,
+                coeffs: self.coeff_count(),
+                channels: self.channels,
+            });
         }
         if let Some(k) = self.data.iter().position(|x| !x.is_finite()) {
-            return Err(format!("non-finite value at vertex {}", k / self.stride()));
+            return Err(ShTransferError::NonFinite {
+                vertex: k / self.stride(),
+            });
         }
         Ok(())
     }
+}
+
+/// Why an [`ShTransfer`] is inconsistent ([`ShTransfer::validate`]): a corrupt or hand-made
+/// transfer, never a fresh bake.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum ShTransferError {
+    /// The order is 0 or above [`MAX_ORDER`].
+    #[error("order {0} is not in 1..={MAX_ORDER}")]
+    Order(usize),
+    /// The channel count does not match the kind (1 for unshadowed and shadowed, 3 for
+    /// interreflected).
+    #[error("{kind:?} transfer must have {} channels, has {channels}", kind.channels())]
+    Channels {
+        /// The transfer's kind.
+        kind: ShTransferKind,
+        /// Its channel count.
+        channels: usize,
+    },
+    /// `data` is not `vertices x coeffs x channels` floats long.
+    #[error(
+        "data has {len} floats, expected {vertices} vertices x {coeffs} coefficients x \
+         {channels} channels = {}",
+        vertices * coeffs * channels
+    )]
+    Length {
+        /// Floats held.
+        len: usize,
+        /// Vertex count.
+        vertices: usize,
+        /// Coefficients per channel, `order^2`.
+        coeffs: usize,
+        /// Channels.
+        channels: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("non-finite value at vertex {vertex}")]
+    NonFinite {
+        /// The first vertex holding one.
+        vertex: usize,
+    },
 }
 
 /// Bake per-vertex diffuse SH transfer of `mesh` (materials indexed by `mesh.material_ids`)

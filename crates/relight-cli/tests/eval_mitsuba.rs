@@ -55,7 +55,7 @@ fn sh_prt_error_per_order_against_mitsuba() {
             .map(|r| r["rel_rmse"].as_f64().unwrap())
             .collect();
         let noise = rows[0]["reference_noise"].as_f64().unwrap();
-        eprintln!("{scene} under {env}: reference noise {noise:.4}, relative RMSE per order 2..10: {rel:.4?}");
+        eprintln!("{scene} under {}: reference noise {noise:.4}, relative RMSE per order 2..10: {rel:.4?}", env.display());
         assert_eq!(rel.len(), 9);
         for w in rel.windows(2) {
             assert!(w[1] <= w[0] + 0.005, "error grows with the order: {rel:?}");

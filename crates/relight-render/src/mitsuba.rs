@@ -16,7 +16,8 @@
 //! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong has no Mitsuba counterpart and is refused.
 
 use crate::image::Image;
-use relight_scene::material::Material;
+use relight_scene::error::SceneError;
+use relight_scene::material::{Material, MaterialError};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Scene;
 use relight_sphere::envmap::{EnvLayout, EnvMap};
@@ -24,17 +25,88 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// Why exporting a scene to Mitsuba or running Mitsuba failed. Each message names the file,
+/// material or program; wrapped errors are part of the message (not also its `source`).
+#[derive(Debug, thiserror::Error)]
+pub enum MitsubaError {
+    /// A folder or file could not be created or written.
+    #[error("{path}: {error}")]
+    Io {
+        /// The folder or file.
+        path: PathBuf,
+        /// The OS error.
+        error: std::io::Error,
+    },
+    /// A mesh or image file could not be written or read.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// The scene's camera is invalid (the message of `Camera::validate`).
+    #[error("camera: {0}")]
+    Camera(String),
+    /// A material in use is out of range.
+    #[error("material {index}: {error}")]
+    Material {
+        /// Material index in the scene.
+        index: usize,
+        /// What is wrong with it.
+        error: MaterialError,
+    },
+    /// A material in use is Blinn-Phong, which Mitsuba 3 does not have.
+    #[error("material {index}: Mitsuba 3 has no Blinn-Phong BSDF")]
+    BlinnPhong {
+        /// Material index in the scene.
+        index: usize,
+    },
+    /// `scene.json` could not be serialised.
+    #[error("scene.json: {0}")]
+    Json(serde_json::Error),
+    /// A program (Python) could not be started.
+    #[error("cannot run {program}: {error}")]
+    Run {
+        /// The program.
+        program: PathBuf,
+        /// The OS error.
+        error: std::io::Error,
+    },
+    /// The Python found cannot `import mitsuba`.
+    #[error("{python} cannot import mitsuba: {stderr}")]
+    NoMitsuba {
+        /// The Python tried.
+        python: PathBuf,
+        /// What Python printed on stderr.
+        stderr: String,
+    },
+    /// `tools/mitsuba_reference.py` exited with an error.
+    #[error("mitsuba_reference.py failed: {stdout}\n{stderr}")]
+    ScriptFailed {
+        /// What the script printed on stdout.
+        stdout: String,
+        /// What the script printed on stderr.
+        stderr: String,
+    },
+}
+
 /// Export `scene` for `tools/mitsuba_reference.py` into `dir` (created if needed); returns
 /// the path of `scene.json`. `max_depth` has Mitsuba's meaning (2 = direct only, -1 =
 /// unlimited).
+///
+/// # Errors
+/// An invalid camera or material, a Blinn-Phong material in use, or a file that cannot be
+/// written.
 pub fn export_mitsuba(
     scene: &Scene,
     dir: &Path,
     spp: u32,
     max_depth: i32,
-) -> Result<PathBuf, String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    scene.camera.validate()?;
+) -> Result<PathBuf, MitsubaError> {
+    std::fs::create_dir_all(dir).map_err(|error| MitsubaError::Io {
+        path: dir.to_path_buf(),
+        error,
+    })?;
+    scene
+        .camera
+        .validate()
+        .map_err(|e| MitsubaError::Camera(e.to_string()))?;
     let mut shapes = Vec::new();
     for (m, material) in scene.materials.iter().enumerate() {
         let sub = submesh(&scene.mesh, m as u32);
@@ -43,10 +115,10 @@ pub fn export_mitsuba(
         }
         material
             .validate()
-            .map_err(|e| format!("material {m}: {e}"))?;
-        let bsdf = bsdf_json(material).map_err(|e| format!("material {m}: {e}"))?;
+            .map_err(|error| MitsubaError::Material { index: m, error })?;
+        let bsdf = bsdf_json(material).ok_or(MitsubaError::BlinnPhong { index: m })?;
         let name = format!("shape_{m}.ply");
-        relight_scene::io::ply::write_ply(&dir.join(&name), &sub).map_err(|e| e.to_string())?;
+        relight_scene::io::ply::write_ply(&dir.join(&name), &sub)?;
         shapes.push(json!({ "ply": name, "bsdf": bsdf }));
     }
     let env = &scene.env;
@@ -56,8 +128,7 @@ pub fn export_mitsuba(
         latlong.width(),
         latlong.height(),
         latlong.texels(),
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let c = &scene.camera;
     let doc = json!({
         "camera": {
@@ -71,14 +142,18 @@ pub fn export_mitsuba(
         "hide_emitters": false,
     });
     let path = dir.join("scene.json");
-    let text = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
-    std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = serde_json::to_string_pretty(&doc).map_err(MitsubaError::Json)?;
+    std::fs::write(&path, text).map_err(|error| MitsubaError::Io {
+        path: path.clone(),
+        error,
+    })?;
     Ok(path)
 }
 
-/// The Mitsuba BSDF description of a material (see the module docs).
-fn bsdf_json(m: &Material) -> Result<Value, String> {
-    Ok(match *m {
+/// The Mitsuba BSDF description of a material (see the module docs); `None` for Blinn-Phong,
+/// which Mitsuba 3 does not have.
+fn bsdf_json(m: &Material) -> Option<Value> {
+    Some(match *m {
         Material::Lambert { albedo } => {
             json!({ "type": "diffuse", "reflectance": albedo.to_array() })
         }
@@ -94,7 +169,7 @@ fn bsdf_json(m: &Material) -> Result<Value, String> {
             "type": "roughplastic", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0,
             "diffuse_reflectance": diffuse.to_array(), "specular_reflectance": specular.to_array(),
         }),
-        Material::BlinnPhong { .. } => return Err("Mitsuba 3 has no Blinn-Phong BSDF".into()),
+        Material::BlinnPhong { .. } => return None,
     })
 }
 
@@ -151,8 +226,12 @@ fn write_reference_script(dir: &Path) -> std::io::Result<PathBuf> {
 
 /// The Python that runs Mitsuba: `$RELIGHT_MITSUBA_PYTHON`, else
 /// `$RELIGHT_VENV/bin/python`, else `$HOME/.cache/relight/venv/bin/python` (where
-/// `scripts/setup.sh` puts it), if it can `import mitsuba`; `Err` says why not.
-pub fn mitsuba_python() -> Result<PathBuf, String> {
+/// `scripts/setup.sh` puts it), if it can `import mitsuba`.
+///
+/// # Errors
+/// [`MitsubaError::Run`] if that Python cannot be started, [`MitsubaError::NoMitsuba`] if it
+/// cannot import Mitsuba.
+pub fn mitsuba_python() -> Result<PathBuf, MitsubaError> {
     let py = std::env::var_os("RELIGHT_MITSUBA_PYTHON")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
@@ -169,13 +248,15 @@ pub fn mitsuba_python() -> Result<PathBuf, String> {
     let out = Command::new(&py)
         .args(["-c", "import mitsuba"])
         .output()
-        .map_err(|e| format!("cannot run {}: {e}", py.display()))?;
+        .map_err(|error| MitsubaError::Run {
+            program: py.clone(),
+            error,
+        })?;
     if !out.status.success() {
-        return Err(format!(
-            "{} cannot import mitsuba: {}",
-            py.display(),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
+        return Err(MitsubaError::NoMitsuba {
+            python: py,
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        });
     }
     Ok(py)
 }
@@ -184,24 +265,25 @@ pub fn mitsuba_python() -> Result<PathBuf, String> {
 /// per sampler seed in `seeds` (one Python process), and load the images. `out_stem` names
 /// the files (`<out_stem>_s<seed>.exr`); `spp` overrides the file's when `Some`. Returns the
 /// images (in `seeds` order) and the script's report line (variant, time).
+///
+/// # Errors
+/// Python cannot be started, the script fails, or an image it wrote cannot be read.
 pub fn render_mitsuba(
     python: &Path,
     scene_json: &Path,
     out_stem: &Path,
     seeds: &[u32],
     spp: Option<u32>,
-) -> Result<(Vec<Image>, String), String> {
+) -> Result<(Vec<Image>, String), MitsubaError> {
     if seeds.is_empty() {
         return Ok((Vec::new(), String::new()));
     }
     let list: Vec<String> = seeds.iter().map(|s| s.to_string()).collect();
     let out_exr = out_stem.with_extension("exr");
     let script_dir = scene_json.parent().unwrap_or(Path::new("."));
-    let script = write_reference_script(script_dir).map_err(|e| {
-        format!(
-            "cannot write the Mitsuba script into {}: {e}",
-            script_dir.display()
-        )
+    let script = write_reference_script(script_dir).map_err(|error| MitsubaError::Io {
+        path: script_dir.join("mitsuba_reference.py"),
+        error,
     })?;
     let mut cmd = Command::new(python);
     cmd.arg(&script)
@@ -211,15 +293,16 @@ pub fn render_mitsuba(
     if let Some(s) = spp {
         cmd.args(["--spp", &s.to_string()]);
     }
-    let out = cmd
-        .output()
-        .map_err(|e| format!("cannot run {}: {e}", python.display()))?;
+    let out = cmd.output().map_err(|error| MitsubaError::Run {
+        program: python.to_path_buf(),
+        error,
+    })?;
     let stdout = String::from_utf8_lossy(&out.stdout).trim().to_string();
     if !out.status.success() {
-        return Err(format!(
-            "mitsuba_reference.py failed: {stdout}\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        ));
+        return Err(MitsubaError::ScriptFailed {
+            stdout,
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        });
     }
     let mut images = Vec::new();
     for s in seeds {
@@ -228,7 +311,7 @@ pub fn render_mitsuba(
             .map(|n| n.to_string_lossy().to_string())
             .unwrap_or_default();
         let path = out_stem.with_file_name(format!("{stem}_s{s}.exr"));
-        let (w, h, px) = relight_scene::io::image::read_exr(&path).map_err(|e| e.to_string())?;
+        let (w, h, px) = relight_scene::io::image::read_exr(&path)?;
         images.push(Image {
             width: w,
             height: h,
@@ -303,7 +386,12 @@ mod tests {
         // Blinn-Phong in use is refused.
         let mut bp = scene.clone();
         bp.mesh.material_ids.iter_mut().for_each(|m| *m = 1);
-        assert!(export_mitsuba(&bp, &dir, 16, 3).is_err());
+        let e = export_mitsuba(&bp, &dir, 16, 3).unwrap_err();
+        assert!(matches!(e, MitsubaError::BlinnPhong { index: 1 }), "{e:?}");
+        assert_eq!(
+            e.to_string(),
+            "material 1: Mitsuba 3 has no Blinn-Phong BSDF"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -28,7 +28,7 @@ use relight_scene::accel::{offset_ray_origin, Ray, RayCaster};
 use relight_scene::material::{power_heuristic, Material};
 use relight_scene::scene::Scene;
 use relight_scene::{Mat3, Vec3};
-use relight_sphere::envmap::EnvSampler;
+use relight_sphere::env_sampler::EnvSampler;
 use relight_sphere::warp::{Frame, Rng};
 
 /// Depth from which Russian roulette may end paths (Mitsuba 3's default `rr_depth`).

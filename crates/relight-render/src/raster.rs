@@ -831,7 +831,7 @@ mod tests {
         let caster = relight_scene::accel::build_default(&mesh);
         let settings = ShBakeSettings {
             order: 3,
-            kind: ShTransferKind::Unshadowed,
+            transfer: ShTransferKind::Unshadowed,
             ..Default::default()
         };
         let albedo = Vec3::new(0.2, 0.5, 0.8);
@@ -899,14 +899,15 @@ mod tests {
         };
         let light = relight_sphere::sh::project_env(&map, 3);
         let albedo = relight_bake::transport::vertex_albedo(&mesh, &mats);
-        for (kind, max_depth) in [
-            (ShTransferKind::Shadowed, 2),
-            (ShTransferKind::Interreflected { bounces: 3 }, 5),
+        for (transfer, bounces, max_depth) in [
+            (ShTransferKind::Shadowed, 0, 2),
+            (ShTransferKind::Interreflected, 3, 5),
         ] {
             let s = ShBakeSettings {
                 order: 3,
                 samples: 256,
-                kind,
+                transfer,
+                bounces,
                 ..Default::default()
             };
             let t = bake(&mesh, &mats, caster.as_ref(), &s).unwrap();
@@ -939,7 +940,7 @@ mod tests {
             // 3% relative: per-vertex interpolation of the contact shadow, the bake's own
             // noise and the environment's slight energy above order 3. A mirrored environment
             // or a lost 1/pi gives well over 20%.
-            assert!(b < 0.03, "{kind:?}: bias {b} {m:?}");
+            assert!(b < 0.03, "{transfer:?}: bias {b} {m:?}");
             // Mirroring the lighting (negating band 1) must be detected.
             let mut wrong = light.clone();
             wrong[1..4].iter_mut().for_each(|c| *c = -*c);
@@ -948,48 +949,10 @@ mod tests {
             let (b, m) = bias(&r.image);
             assert!(
                 b > 0.2,
-                "{kind:?}: mirrored light not detected: bias {b} {m:?}"
+                "{transfer:?}: mirrored light not detected: bias {b} {m:?}"
             );
         }
     }
-}
-/// Timing for the report: `cargo test --release -p relight-render raster_timing -- --ignored
-/// --nocapture`.
-#[cfg(test)]
-mod perf {
-    use super::*;
-
-    #[test]
-    #[ignore]
-    fn raster_timing() {
-        let mut mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 500, 1000);
-        let plane = relight_scene::shapes::ground_plane(Vec3::new(0.0, -1.0, 0.0), 10.0, 200);
-        mesh.append(&plane, 0);
-        let rad = vec![Vec3::splat(0.5); mesh.vertex_count()];
-        let camera = Camera {
-            origin: [0.0, 1.0, 4.0],
-            target: [0.0; 3],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 50.0,
-            width: 1024,
-            height: 768,
-        };
-        for ss in [1, 4] {
-            let t0 = std::time::Instant::now();
-            let opts = RasterOptions { supersample: ss };
-            std::hint::black_box(render_with(&mesh, &camera, &rad, None, &opts));
-            let ms = t0.elapsed().as_secs_f64() * 1e3;
-            println!(
-                "{} triangles, 1024x768, supersample {ss}: {ms:.1} ms",
-                mesh.triangle_count()
-            );
-        }
-    }
-}
-
-#[cfg(test)]
-mod gbuffer_tests {
-    use super::*;
 
     fn tilted_quad() -> (TriMesh, Camera) {
         let corners = [

@@ -62,8 +62,11 @@ use relight_sphere::envmap::{EnvLayout, EnvMap};
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sh;
-use relight_sphere::sh_rotate::ShRotation;
+use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
+
+mod bench;
+pub use bench::{bench_sg_frame, synthetic_sphere_bake, SgFrameBench};
 
 /// Vertices per parallel work item of the per-vertex pass.
 const CHUNK: usize = 1024;
@@ -574,10 +577,5 @@ fn view_factor(table: &[f32; VIEW_TABLE], cos_i: f32) -> f32 {
     table[i] * (1.0 - f) + table[i + 1] * f
 }
 
-#[path = "shade_sg_bench.rs"]
-mod bench;
-pub use bench::{bench_sg_frame, synthetic_sphere_bake, SgFrameBench};
-
 #[cfg(test)]
-#[path = "shade_sg_tests.rs"]
 mod tests;

@@ -13,7 +13,7 @@
 //! (one multiply-add of the RGB triple, four accumulators to hide add latency). That portable
 //! single-channel kernel turned out compute-bound (about 40 cycles per order-5 vertex per core,
 //! the same in and out of cache), so on CPUs with AVX2 and FMA a run-time-selected kernel
-//! (`shade_sh_avx2.rs`: 8-wide fused multiply-adds against zero-padded light planes) does the
+//! (`shade_sh/avx2.rs`: 8-wide fused multiply-adds against zero-padded light planes) does the
 //! single-channel case, which makes a frame memory-bandwidth bound: [`bench_relight`] measures
 //! it against a STREAM-like copy (McCalpin's STREAM "Copy" kernel, bytes counted as read +
 //! written) on the same
@@ -29,7 +29,6 @@ use std::time::Instant;
 const CHUNK: usize = 2048;
 
 #[cfg(target_arch = "x86_64")]
-#[path = "shade_sh_avx2.rs"]
 mod avx2;
 
 /// `RELIGHT_PORTABLE_KERNELS=1` disables the run-time-selected SIMD kernels (for comparisons
@@ -317,10 +316,7 @@ mod tests {
             let albedo: Vec<Vec3> = (0..n)
                 .map(|v| Vec3::new(0.2, 0.5, (v % 10) as f32 / 10.0))
                 .collect();
-            for kind in [
-                ShTransferKind::Shadowed,
-                ShTransferKind::Interreflected { bounces: 1 },
-            ] {
+            for kind in [ShTransferKind::Shadowed, ShTransferKind::Interreflected] {
                 let t = synthetic(order, kind, n);
                 t.validate().unwrap();
                 for alb in [None, Some(albedo.as_slice())] {
@@ -397,29 +393,5 @@ mod tests {
             b.ms_per_frame > 0.0 && b.stream_copy_gbps > 0.0 && b.ratio_to_bandwidth_bound > 0.0
         );
         assert_eq!(b.bytes_per_frame, 20_000 * (4 * 9 + 24));
-    }
-
-    /// Figures for the report: `cargo test --release -p relight-render bench_relight_figures
-    /// -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn bench_relight_figures() {
-        for (v, order) in [
-            (1_000_000, 3),
-            (1_000_000, 5),
-            (1_000_000, 10),
-            (100_000, 5),
-        ] {
-            let b = bench_relight(v, order);
-            println!(
-                "{v} vertices, order {order}: {:.2} ms/frame, {:.1} MB/frame, {:.2} GB/s achieved, STREAM copy {:.2} GB/s, ratio {:.2}, {} threads",
-                b.ms_per_frame,
-                b.bytes_per_frame as f64 / 1e6,
-                b.bytes_per_frame as f64 / b.ms_per_frame / 1e6,
-                b.stream_copy_gbps,
-                b.ratio_to_bandwidth_bound,
-                b.threads
-            );
-        }
     }
 }

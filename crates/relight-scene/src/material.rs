@@ -21,7 +21,6 @@
 //!   [`microfacet::PlasticTables`]); specular vs diffuse sampling as Mitsuba's
 //!   `specular_sampling_weight`.
 
-#[path = "microfacet.rs"]
 pub mod microfacet;
 
 use crate::Vec3;
@@ -314,16 +313,19 @@ impl Material {
     /// Check parameter ranges: reflectances finite in `[0, 1]` (Blinn-Phong: `diffuse +
     /// specular <= 1` per channel), exponent finite and `> 0`, `alpha` in `[1e-4, 2]`, `ior`
     /// in `(1, 4]`.
-    pub fn validate(&self) -> Result<(), String> {
-        fn refl(name: &str, v: Vec3) -> Result<(), String> {
-            if !v.is_finite() || v.min_element() < 0.0 || v.max_element() > 1.0 {
-                return Err(format!("{name} {v} must be finite and in [0, 1]"));
+    ///
+    /// # Errors
+    /// The first parameter out of range.
+    pub fn validate(&self) -> Result<(), MaterialError> {
+        fn refl(name: &'static str, value: Vec3) -> Result<(), MaterialError> {
+            if !value.is_finite() || value.min_element() < 0.0 || value.max_element() > 1.0 {
+                return Err(MaterialError::Reflectance { name, value });
             }
             Ok(())
         }
-        fn rough(alpha: f32) -> Result<(), String> {
+        fn rough(alpha: f32) -> Result<(), MaterialError> {
             if !(mf::MIN_ALPHA..=2.0).contains(&alpha) {
-                return Err(format!("GGX alpha {alpha} must be in [1e-4, 2]"));
+                return Err(MaterialError::Alpha(alpha));
             }
             Ok(())
         }
@@ -337,15 +339,10 @@ impl Material {
                 refl("diffuse", diffuse)?;
                 refl("specular", specular)?;
                 if (diffuse + specular).max_element() > 1.0 + 1e-6 {
-                    return Err(format!(
-                        "diffuse + specular {} exceeds 1",
-                        diffuse + specular
-                    ));
+                    return Err(MaterialError::EnergyGain(diffuse + specular));
                 }
                 if !(exponent.is_finite() && exponent > 0.0) {
-                    return Err(format!(
-                        "Blinn-Phong exponent {exponent} must be finite and > 0"
-                    ));
+                    return Err(MaterialError::Exponent(exponent));
                 }
                 Ok(())
             }
@@ -363,12 +360,37 @@ impl Material {
                 refl("specular", specular)?;
                 rough(alpha)?;
                 if !(ior > 1.0 && ior <= 4.0) {
-                    return Err(format!("plastic ior {ior} must be in (1, 4]"));
+                    return Err(MaterialError::Ior(ior));
                 }
                 Ok(())
             }
         }
     }
+}
+
+/// A [`Material`] parameter out of range ([`Material::validate`]).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum MaterialError {
+    /// A reflectance is negative, above 1 or not finite.
+    #[error("{name} {value} must be finite and in [0, 1]")]
+    Reflectance {
+        /// The parameter (`albedo`, `diffuse`, `specular`).
+        name: &'static str,
+        /// Its value.
+        value: Vec3,
+    },
+    /// Blinn-Phong `diffuse + specular` exceeds 1 in some channel (the value is the sum).
+    #[error("diffuse + specular {0} exceeds 1")]
+    EnergyGain(Vec3),
+    /// The Blinn-Phong exponent is not finite and positive.
+    #[error("Blinn-Phong exponent {0} must be finite and > 0")]
+    Exponent(f32),
+    /// A GGX `alpha` is outside `[1e-4, 2]`.
+    #[error("GGX alpha {0} must be in [1e-4, 2]")]
+    Alpha(f32),
+    /// The plastic's `ior` is outside `(1, 4]`.
+    #[error("plastic ior {0} must be in (1, 4]")]
+    Ior(f32),
 }
 
 /// The glossy / diffuse split of every BRDF used by view-dependent PRT (Green 2005, thesis
@@ -1179,11 +1201,22 @@ mod tests {
     #[test]
     fn validate_rejects_bad_parameters() {
         assert!(Material::default().validate().is_ok());
-        assert!(Material::Lambert {
-            albedo: Vec3::splat(1.2)
+        let e = Material::Lambert {
+            albedo: Vec3::splat(1.2),
         }
         .validate()
-        .is_err());
+        .unwrap_err();
+        assert_eq!(
+            e,
+            MaterialError::Reflectance {
+                name: "albedo",
+                value: Vec3::splat(1.2)
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            "albedo [1.2, 1.2, 1.2] must be finite and in [0, 1]"
+        );
         assert!(Material::Lambert {
             albedo: Vec3::new(f32::NAN, 0.0, 0.0)
         }
@@ -1209,14 +1242,16 @@ mod tests {
         }
         .validate()
         .is_err());
-        assert!(Material::GgxPlastic {
-            diffuse: Vec3::ONE,
-            specular: Vec3::ONE,
-            alpha: 0.1,
-            ior: 1.0
-        }
-        .validate()
-        .is_err());
+        assert_eq!(
+            Material::GgxPlastic {
+                diffuse: Vec3::ONE,
+                specular: Vec3::ONE,
+                alpha: 0.1,
+                ior: 1.0
+            }
+            .validate(),
+            Err(MaterialError::Ior(1.0))
+        );
         assert!(Material::GgxPlastic {
             diffuse: Vec3::ONE,
             specular: Vec3::ONE,

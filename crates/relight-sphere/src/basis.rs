@@ -6,7 +6,7 @@
 //! RGB (`Vec3`) or scalar (`f32`); [`SphericalBasis::project_env`] uses the exact quadrature
 //! weights of [`EnvMap::texel`], which is a least-squares projection only for orthonormal bases.
 
-use crate::envmap::EnvMap;
+use crate::envmap::{project_point_rule, EnvMap};
 use crate::sh::{eval_sh, sh_count, MAX_ORDER};
 use crate::Vec3;
 
@@ -50,36 +50,6 @@ pub trait SphericalBasis {
     }
 }
 
-/// The point-rule projection shared by every basis: `sum_i value(t_i) B(dir_i) w_i` over the
-/// texels `t_i` of `grid` with their quadrature weights `w_i` ([`EnvMap::texel`]), accumulated
-/// in f64; texels whose value is zero are skipped. `eval_basis(dir, out)` fills `n` values.
-pub fn project_point_rule(
-    grid: &EnvMap,
-    n: usize,
-    eval_basis: impl Fn(Vec3, &mut [f32]),
-    value: impl Fn(&crate::envmap::TexelInfo) -> Vec3,
-) -> Vec<Vec3> {
-    let mut acc = vec![[0f64; 3]; n];
-    let mut b = vec![0f32; n];
-    for t in grid.texel_iter() {
-        let v = value(&t);
-        if v == Vec3::ZERO {
-            continue;
-        }
-        eval_basis(t.dir, &mut b);
-        let w = t.solid_angle as f64;
-        let v = [v.x as f64 * w, v.y as f64 * w, v.z as f64 * w];
-        for (a, &y) in acc.iter_mut().zip(&b) {
-            a[0] += v[0] * y as f64;
-            a[1] += v[1] * y as f64;
-            a[2] += v[2] * y as f64;
-        }
-    }
-    acc.iter()
-        .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
-        .collect()
-}
-
 /// Real spherical harmonics of a given order (conventions of [`crate::sh`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShBasis {
@@ -119,7 +89,7 @@ impl SphericalBasis for ShBasis {
         crate::sh::eval_rgb(coeffs, dir)
     }
 
-    /// Exact for latlong maps (`sh_project`), the point rule for cube and probe maps.
+    /// Exact for latlong maps (`sh::project`), the point rule for cube and probe maps.
     fn project_env(&self, map: &EnvMap) -> Vec<Vec3> {
         crate::sh::project_env(map, self.order)
     }

@@ -130,42 +130,34 @@ impl Default for DecomposeSettings {
 }
 
 impl DecomposeSettings {
-    /// Checks every field's range; the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks every field's range.
+    ///
+    /// # Errors
+    /// The first field out of range.
+    pub fn validate(&self) -> Result<(), DecomposeSettingsError> {
+        use DecomposeSettingsError as E;
         let s = self;
         if !(1..=sh::MAX_ORDER).contains(&s.sh_order) {
-            return Err(format!(
-                "sh_order {} is not in 1..={}",
-                s.sh_order,
-                sh::MAX_ORDER
-            ));
+            return Err(E::ShOrder(s.sh_order));
         }
         if !(s.kernel_deg > 0.0 && s.kernel_deg <= 30.0) {
-            return Err(format!("kernel_deg {} is not in (0, 30]", s.kernel_deg));
+            return Err(E::KernelDeg(s.kernel_deg));
         }
         if !(1..=128).contains(&s.icosphere_frequency) {
-            return Err(format!(
-                "icosphere_frequency {} is not in 1..=128",
-                s.icosphere_frequency
-            ));
+            return Err(E::IcosphereFrequency(s.icosphere_frequency));
         }
         if !(s.light_radius_deg > 0.0 && s.light_radius_deg <= 45.0) {
-            return Err(format!(
-                "light_radius_deg {} is not in (0, 45]",
-                s.light_radius_deg
-            ));
+            return Err(E::LightRadiusDeg(s.light_radius_deg));
         }
         if !(0.0..=1.0).contains(&s.threshold) {
-            return Err(format!("threshold {} is not in [0, 1]", s.threshold));
+            return Err(E::Threshold(s.threshold));
         }
         if !(0.0..=1.0).contains(&s.min_share) {
-            return Err(format!("min_share {} is not in [0, 1]", s.min_share));
+            return Err(E::MinShare(s.min_share));
         }
         if let Window::Sloan { lambda } = s.window {
             if !(lambda >= 0.0 && lambda.is_finite()) {
-                return Err(format!(
-                    "Sloan window lambda {lambda} is not finite and >= 0"
-                ));
+                return Err(E::SloanLambda(lambda));
             }
         }
         Ok(())
@@ -189,14 +181,45 @@ pub fn cap_solid_angle(r: f32) -> f32 {
     4.0 * PI * (0.5 * r).sin().powi(2)
 }
 
+/// A [`DecomposeSettings`] field out of range ([`DecomposeSettings::validate`]); the message
+/// names the field as written in the struct.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum DecomposeSettingsError {
+    /// `sh_order` is not in `1..=MAX_ORDER`.
+    #[error("sh_order {0} is not in 1..={max}", max = sh::MAX_ORDER)]
+    ShOrder(usize),
+    /// `kernel_deg` is not in `(0, 30]`.
+    #[error("kernel_deg {0} is not in (0, 30]")]
+    KernelDeg(f32),
+    /// `icosphere_frequency` is not in `1..=128`.
+    #[error("icosphere_frequency {0} is not in 1..=128")]
+    IcosphereFrequency(usize),
+    /// `light_radius_deg` is not in `(0, 45]`.
+    #[error("light_radius_deg {0} is not in (0, 45]")]
+    LightRadiusDeg(f32),
+    /// `threshold` is not in `[0, 1]`.
+    #[error("threshold {0} is not in [0, 1]")]
+    Threshold(f32),
+    /// `min_share` is not in `[0, 1]`.
+    #[error("min_share {0} is not in [0, 1]")]
+    MinShare(f32),
+    /// The `lambda` of a [`Window::Sloan`] is negative or not finite.
+    #[error("Sloan window lambda {0} is not finite and >= 0")]
+    SloanLambda(f32),
+}
+
 /// Why a decomposition failed.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum DecomposeError {
-    /// A setting is out of range (message from [`DecomposeSettings::validate`]).
-    Settings(String),
+    /// A setting is out of range (its message is part of this one's, so it is not also
+    /// reported as the error's source).
+    #[error("decomposition settings: {0}")]
+    Settings(DecomposeSettingsError),
     /// The map's layout or size differs from the one the [`Decomposer`] was built for.
+    #[error("decomposition: {0}")]
     Layout(String),
     /// A texel is NaN, infinite or negative (programmatic maps; files are checked on load).
+    #[error("environment pixel {pixel} is {value}: radiance must be finite and >= 0")]
     BadTexel {
         /// Pixel index into [`EnvMap::texels`].
         pixel: usize,
@@ -204,21 +227,6 @@ pub enum DecomposeError {
         value: Vec3,
     },
 }
-
-impl std::fmt::Display for DecomposeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            DecomposeError::Settings(m) => write!(f, "decomposition settings: {m}"),
-            DecomposeError::Layout(m) => write!(f, "decomposition: {m}"),
-            DecomposeError::BadTexel { pixel, value } => write!(
-                f,
-                "environment pixel {pixel} is {value}: radiance must be finite and >= 0"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for DecomposeError {}
 
 /// One light taken out of the environment: a uniform cap of radius `cap_radius` around `dir`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -661,34 +661,4 @@ mod tests {
                 < 1e-5
         );
     }
-
-    #[test]
-    #[ignore]
-    fn bench_prefilter_timing() {
-        let s = bench_prefilter();
-        // Two threads over the (level, face) jobs with std threads, to report the 2-core time.
-        let map = bench_map(256);
-        let levels = default_levels(256, 8);
-        let opts = PrefilterOptions::default();
-        let t0 = std::time::Instant::now();
-        let pyr = SourcePyramid::new(&map);
-        let jobs: Vec<(usize, usize)> = (0..levels.len())
-            .flat_map(|k| (0..6).map(move |f| (k, f)))
-            .collect();
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        std::thread::scope(|sc| {
-            for _ in 0..2 {
-                sc.spawn(|| loop {
-                    let j = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(&(k, f)) = jobs.get(j) else { break };
-                    let l = levels[k];
-                    let mut out = vec![Vec3::ZERO; l.size * l.size];
-                    prefilter_face(&pyr, &l, &opts, CubeFace::from_index(f), &mut out);
-                    std::hint::black_box(out);
-                });
-            }
-        });
-        let t2 = t0.elapsed().as_secs_f64();
-        eprintln!("prefilter 6x256x256, 8 levels: 1 thread {s:.3} s, 2 threads {t2:.3} s");
-    }
 }

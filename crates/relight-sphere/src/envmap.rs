@@ -12,15 +12,14 @@
 //!   * probe: pixels whose centre is inside the disc; `w` = exact solid angle of the pixel
 //!     square (see [`crate::probe`]).
 //!
-//! Importance sampling lives in [`EnvSampler`] (re-exported from `env_sampler.rs`).
+//! [`project_point_rule`] is the inner product of such a rule with any set of basis functions.
+//! Importance sampling lives in [`crate::env_sampler`].
 
 use crate::cubemap::{self, CubeFace};
 use crate::latlong;
 use crate::probe::{self, ProbeSamples};
 use crate::{Vec2, Vec3};
 use std::sync::Arc;
-
-pub use crate::env_sampler::EnvSampler;
 
 /// Layout of an environment map's texel array.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -148,7 +147,7 @@ impl EnvMap {
     }
 
     /// A constant environment (a small 64 x 33 latlong map filled with `rgb`; dense enough
-    /// that its SH projection has bands above 0 at rounding level, ~1e-15 of band 0, with the exact latlong projection of `sh_project`).
+    /// that its SH projection has bands above 0 at rounding level, ~1e-15 of band 0, with the exact latlong projection of `sh::project`).
     pub fn constant(rgb: Vec3) -> EnvMap {
         EnvMap::latlong(64, 33, vec![rgb; 64 * 33])
     }
@@ -412,6 +411,37 @@ impl EnvMap {
     pub fn cube_face_of(&self, i: usize) -> Option<CubeFace> {
         (self.layout == EnvLayout::Cube).then(|| cubemap::texel_coords(self.width, i).0)
     }
+}
+
+/// The point-rule projection shared by every spherical basis ([`crate::basis`]):
+/// `sum_i value(t_i) B(dir_i) w_i` over the texels `t_i` of `grid` with their quadrature
+/// weights `w_i` ([`EnvMap::texel`]), accumulated in f64; texels whose value is zero are
+/// skipped. `eval_basis(dir, out)` fills `n` values.
+pub fn project_point_rule(
+    grid: &EnvMap,
+    n: usize,
+    eval_basis: impl Fn(Vec3, &mut [f32]),
+    value: impl Fn(&TexelInfo) -> Vec3,
+) -> Vec<Vec3> {
+    let mut acc = vec![[0f64; 3]; n];
+    let mut b = vec![0f32; n];
+    for t in grid.texel_iter() {
+        let v = value(&t);
+        if v == Vec3::ZERO {
+            continue;
+        }
+        eval_basis(t.dir, &mut b);
+        let w = t.solid_angle as f64;
+        let v = [v.x as f64 * w, v.y as f64 * w, v.z as f64 * w];
+        for (a, &y) in acc.iter_mut().zip(&b) {
+            a[0] += v[0] * y as f64;
+            a[1] += v[1] * y as f64;
+            a[2] += v[2] * y as f64;
+        }
+    }
+    acc.iter()
+        .map(|a| Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32))
+        .collect()
 }
 
 #[cfg(test)]

@@ -281,7 +281,7 @@ impl SphericalBasis for HaarBasis {
     /// Exact (fast transform) for a cube map of the same face size; the point rule otherwise.
     fn project_env(&self, map: &EnvMap) -> Vec<Vec3> {
         if map.layout() != EnvLayout::Cube || map.width() != self.n {
-            return crate::basis::project_point_rule(
+            return crate::envmap::project_point_rule(
                 map,
                 self.coeff_count(),
                 |d, o| self.eval_basis(d, o),
@@ -445,7 +445,7 @@ mod tests {
         assert!(b.is_orthonormal());
         let map = EnvMap::cube_from_fn(n, |d| Vec3::new(1.0 + d.x, d.y * d.y, lobe(d) as f32));
         let fast = b.project_env(&map);
-        let slow = crate::basis::project_point_rule(
+        let slow = crate::envmap::project_point_rule(
             &map,
             b.coeff_count(),
             |d, o| b.eval_basis(d, o),

@@ -227,74 +227,166 @@ impl Icosphere {
     /// closed consistently oriented 2-manifold (each directed edge once, its reverse once),
     /// Euler characteristic 2, 5 or 6 neighbours in a closed counter-clockwise ring, symmetric
     /// vertex and triangle adjacency.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), IcosphereError> {
         let f = self.frequency;
         let (nv, nt) = (self.vertices.len(), self.triangles.len());
         if nv != 10 * f * f + 2 || nt != 20 * f * f {
-            return Err(format!("counts: {nv} vertices, {nt} triangles for f = {f}"));
+            return Err(IcosphereError::Counts {
+                vertices: nv,
+                triangles: nt,
+                frequency: f,
+            });
         }
         for (i, v) in self.vertices.iter().enumerate() {
             if (v.length() - 1.0).abs() > 1e-5 {
-                return Err(format!("vertex {i} not unit"));
+                return Err(IcosphereError::NotUnit { vertex: i });
             }
         }
         let mut directed = HashMap::new();
         for (t, tri) in self.triangles.iter().enumerate() {
             let [a, b, c] = tri.map(|i| self.vertices[i as usize]);
             if (b - a).cross(c - a).dot(a + b + c) <= 0.0 {
-                return Err(format!("triangle {t} not counter-clockwise from outside"));
+                return Err(IcosphereError::Clockwise { triangle: t });
             }
             for k in 0..3 {
                 if directed.insert((tri[k], tri[(k + 1) % 3]), t).is_some() {
-                    return Err(format!("directed edge of triangle {t} used twice"));
+                    return Err(IcosphereError::EdgeUsedTwice { triangle: t });
                 }
             }
         }
         for &(a, b) in directed.keys() {
             if !directed.contains_key(&(b, a)) {
-                return Err(format!("edge ({a}, {b}) has no opposite: not closed"));
+                return Err(IcosphereError::OpenEdge { from: a, to: b });
             }
         }
         let ne = directed.len() / 2;
         if ne != 30 * f * f || nv + nt != ne + 2 {
-            return Err(format!(
-                "{ne} edges, Euler characteristic {}",
-                nv as i64 - ne as i64 + nt as i64
-            ));
+            return Err(IcosphereError::Euler {
+                edges: ne,
+                characteristic: nv as i64 - ne as i64 + nt as i64,
+            });
         }
         let mut fives = 0;
         for (v, ring) in self.neighbours.iter().enumerate() {
             match ring.len() {
                 5 => fives += 1,
                 6 => {}
-                n => return Err(format!("vertex {v} has {n} neighbours")),
+                n => {
+                    return Err(IcosphereError::Valence {
+                        vertex: v,
+                        neighbours: n,
+                    })
+                }
             }
             for (k, &u) in ring.iter().enumerate() {
                 if !self.neighbours[u as usize].contains(&(v as u32)) {
-                    return Err(format!("neighbours of {v} and {u} not symmetric"));
+                    return Err(IcosphereError::AsymmetricNeighbours { a: v, b: u });
                 }
                 let w = ring[(k + 1) % ring.len()];
                 if !directed.contains_key(&(v as u32, u))
                     || directed.get(&(u, w)) != directed.get(&(v as u32, u))
                 {
-                    return Err(format!(
-                        "ring of vertex {v} is not counter-clockwise around it"
-                    ));
+                    return Err(IcosphereError::RingOrder { vertex: v });
                 }
             }
         }
         if fives != 12 {
-            return Err(format!("{fives} vertices of valence 5 (expected 12)"));
+            return Err(IcosphereError::Valence5Count { count: fives });
         }
         for (t, adj) in self.tri_adjacency.iter().enumerate() {
             for &u in adj {
                 if !self.tri_adjacency[u as usize].contains(&(t as u32)) {
-                    return Err(format!("triangle adjacency {t} / {u} not symmetric"));
+                    return Err(IcosphereError::AsymmetricAdjacency { a: t, b: u });
                 }
             }
         }
         Ok(())
     }
+}
+
+/// The first invariant of an [`Icosphere`] found violated by [`Icosphere::validate`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum IcosphereError {
+    /// Vertex or triangle count is not `10 f^2 + 2` / `20 f^2`.
+    #[error("counts: {vertices} vertices, {triangles} triangles for f = {frequency}")]
+    Counts {
+        /// Vertices held.
+        vertices: usize,
+        /// Triangles held.
+        triangles: usize,
+        /// The frequency `f`.
+        frequency: usize,
+    },
+    /// A vertex is not of unit length.
+    #[error("vertex {vertex} not unit")]
+    NotUnit {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A triangle is clockwise seen from outside.
+    #[error("triangle {triangle} not counter-clockwise from outside")]
+    Clockwise {
+        /// The triangle.
+        triangle: usize,
+    },
+    /// A directed edge appears twice (the surface is not a consistently oriented manifold).
+    #[error("directed edge of triangle {triangle} used twice")]
+    EdgeUsedTwice {
+        /// The triangle of the second use.
+        triangle: usize,
+    },
+    /// The edge `from -> to` has no reverse: the surface is not closed.
+    #[error("edge ({from}, {to}) has no opposite: not closed")]
+    OpenEdge {
+        /// First vertex.
+        from: u32,
+        /// Second vertex.
+        to: u32,
+    },
+    /// Wrong edge count or Euler characteristic (not 2).
+    #[error("{edges} edges, Euler characteristic {characteristic}")]
+    Euler {
+        /// Undirected edges.
+        edges: usize,
+        /// `V - E + F`.
+        characteristic: i64,
+    },
+    /// A vertex has neither 5 nor 6 neighbours.
+    #[error("vertex {vertex} has {neighbours} neighbours")]
+    Valence {
+        /// The vertex.
+        vertex: usize,
+        /// Its neighbour count.
+        neighbours: usize,
+    },
+    /// `b` is a neighbour of `a` but not the other way round.
+    #[error("neighbours of {a} and {b} not symmetric")]
+    AsymmetricNeighbours {
+        /// The vertex whose ring holds `b`.
+        a: usize,
+        /// The neighbour.
+        b: u32,
+    },
+    /// A vertex's neighbour ring is not in counter-clockwise order around it.
+    #[error("ring of vertex {vertex} is not counter-clockwise around it")]
+    RingOrder {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// Not exactly 12 vertices of valence 5.
+    #[error("{count} vertices of valence 5 (expected 12)")]
+    Valence5Count {
+        /// Vertices of valence 5.
+        count: usize,
+    },
+    /// `b` is adjacent to triangle `a` but not the other way round.
+    #[error("triangle adjacency {a} / {b} not symmetric")]
+    AsymmetricAdjacency {
+        /// The triangle whose adjacency holds `b`.
+        a: usize,
+        /// The adjacent triangle.
+        b: u32,
+    },
 }
 
 /// `b` with `sum b = 1` and `dir ∝ b0 a + b1 b + b2 c` (signed volumes).
@@ -409,10 +501,10 @@ mod tests {
     fn validate_catches_breakage() {
         let mut s = Icosphere::new(2);
         s.triangles[3].swap(0, 1);
-        assert!(s.validate().is_err());
+        assert_eq!(s.validate(), Err(IcosphereError::Clockwise { triangle: 3 }));
         let mut s = Icosphere::new(2);
         s.vertices[5] *= 1.1;
-        assert!(s.validate().is_err());
+        assert_eq!(s.validate(), Err(IcosphereError::NotUnit { vertex: 5 }));
     }
 
     #[test]

@@ -26,17 +26,17 @@
 //!
 //! ## Modules
 //! * [`envmap`]: environment maps (latlong, cube, probe), bilinear lookup, exact quadrature
-//!   weights, [`EnvSampler`] importance sampling ([`env_sampler`]);
+//!   weights; [`env_sampler`]: [`EnvSampler`] importance sampling;
 //!   grids: [`latlong`], [`cubemap`], [`probe`], [`icosphere`];
-//! * [`sh`]: real SH evaluation, projection, zonal convolution, windows; [`sh_rotate`]:
-//!   rotation of any order; [`sh_product`]: triple-product tensor; [`basis`]: the
-//!   [`basis::SphericalBasis`] trait;
+//! * [`sh`]: real SH evaluation, projection, zonal convolution, windows, with its children
+//!   [`sh::rotate`] (rotation of any order) and [`sh::project`] (exact latlong projection);
+//!   [`sh_product`]: triple-product tensor; [`basis`]: the [`basis::SphericalBasis`] trait;
 //! * [`decompose`]: environment = SH part + cap lights (hybrid thesis 4.3);
 //! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
 //!
 //! ## Example
 //! ```
-//! use relight_sphere::{sh, sh_rotate::ShRotation, EnvMap, Mat3, Vec3};
+//! use relight_sphere::{sh, sh::rotate::ShRotation, EnvMap, Mat3, Vec3};
 //! // A sky brighter towards +Y, as a 64 x 33 latlong map.
 //! let map = EnvMap::latlong_from_fn(64, 33, |d| Vec3::splat(1.0 + d.y.max(0.0)));
 //! // Order-3 SH projection (9 RGB coefficients) and the irradiance seen by an upward normal.
@@ -51,8 +51,6 @@
 //! let flipped = rot.apply(&radiance);
 //! assert!((sh::eval_rgb(&flipped, -Vec3::Y) - sh::eval_rgb(&radiance, Vec3::Y)).length() < 1e-4);
 //! ```
-
-#![warn(missing_docs)]
 
 pub use glam::{Mat3, Quat, Vec2, Vec3};
 
@@ -71,14 +69,18 @@ pub mod sg;
 pub mod sg_fit;
 pub mod sh;
 pub mod sh_product;
-pub mod sh_project;
-pub mod sh_rotate;
 pub mod warp;
 
 #[cfg(test)]
 mod chi2;
 
 pub use basis::{ShBasis, SphericalBasis};
-pub use envmap::{luminance, EnvLayout, EnvMap, EnvSampler, TexelInfo};
-pub use sh_rotate::ShRotation;
+pub use env_sampler::EnvSampler;
+pub use envmap::{luminance, EnvLayout, EnvMap, TexelInfo};
+pub use sh::rotate::ShRotation;
 pub use warp::Rng;
+
+/// SH rotation under its former top-level path (`relight_sphere::sh_rotate::ShRotation`, used
+/// by `relight-cli`); the module is [`sh::rotate`], a child of [`sh`] since it builds on its
+/// index conventions while [`sh::project_env`] builds on it.
+pub use sh::rotate as sh_rotate;

@@ -1105,31 +1105,4 @@ mod tests {
             (tied.sharpness.ln() - 20f32.ln()).abs() < (free.sharpness.ln() - 20f32.ln()).abs()
         );
     }
-
-    #[test]
-    #[ignore]
-    fn fit_timing() {
-        // Time per fit of the glossy lobe of the test above, for the bake's budget.
-        let v = Vec3::new(0.6, 0.8, 0.0);
-        let f = |w: Vec3| {
-            let c = w.y;
-            if c <= 0.0 {
-                return Vec3::ZERO;
-            }
-            Vec3::new(1.0, 0.8, 0.6) * (w + v).normalize().y.max(0.0).powf(40.0) * c
-        };
-        for n in [8, 16, 32] {
-            let target = target_of(n, f);
-            for k in [1, 3] {
-                let t0 = std::time::Instant::now();
-                let r = fit(&target, k, &FitOptions::default(), None);
-                eprintln!(
-                    "6x{n}x{n}, {k} lobes: {:.2} ms, {} iterations, rel. error {:.4}",
-                    t0.elapsed().as_secs_f64() * 1e3,
-                    r.iterations,
-                    r.relative_error
-                );
-            }
-        }
-    }
 }

@@ -1,5 +1,6 @@
 //! Real spherical harmonics: evaluation, projection of environment maps, zonal convolution
-//! and windowing. Rotation lives in [`crate::sh_rotate`].
+//! and windowing. Two child modules build on the definitions here: [`rotate`] (rotation of any
+//! order) and [`project`] (the exact projection of latlong maps that [`project_env`] uses).
 //!
 //! # Convention (the crate's, stated once here)
 //! Real, orthonormal SH over the unit sphere, on **world Cartesian** `(x, y, z)` with the
@@ -19,11 +20,13 @@
 //! Coefficients of radiance `L` are `L_lm = int L(w) Y_lm(w) dw`; reconstruction is
 //! `L(w) ~ sum L_lm Y_lm(w)`.
 
-use crate::basis::project_point_rule;
-use crate::envmap::EnvMap;
+use crate::envmap::{project_point_rule, EnvMap};
 use crate::Vec3;
 use std::f64::consts::PI;
 use std::sync::OnceLock;
+
+pub mod project;
+pub mod rotate;
 
 /// Largest supported order (bands `0..MAX_ORDER-1`).
 pub const MAX_ORDER: usize = 32;
@@ -246,16 +249,16 @@ pub(crate) fn legendre_factors(
 ///
 /// * **Latlong**: exact for the function the map represents, its bilinear interpolant (what
 ///   [`EnvMap::eval`] and Mitsuba's `envmap` return), by the separable projection of
-///   [`crate::sh_project`]; a constant map projects to `L_00` only (to rounding).
+///   [`project`]; a constant map projects to `L_00` only (to rounding).
 /// * **Cube, probe**: the point rule [`project_env_point_rule`] (their interpolants are not
-///   separable; see [`crate::sh_project`]). A constant cube leaks nothing above band 0 (to
+///   separable; see [`project`]). A constant cube leaks nothing above band 0 (to
 ///   rounding), a constant 48-pixel probe about 1e-3 of `L_00`.
 ///
 /// # Panics
 /// Panics if `order > MAX_ORDER` (latlong; debug builds assert it for the other layouts).
 pub fn project_env(map: &EnvMap, order: usize) -> Vec<Vec3> {
     match map.layout() {
-        crate::envmap::EnvLayout::LatLong => crate::sh_project::project_latlong(map, order),
+        crate::envmap::EnvLayout::LatLong => project::project_latlong(map, order),
         _ => project_env_point_rule(map, order),
     }
 }
@@ -552,7 +555,7 @@ mod tests {
                 m.layout(),
                 p[0]
             );
-            // Higher bands vanish: latlong maps are projected exactly (`sh_project`); cube
+            // Higher bands vanish: latlong maps are projected exactly (`sh::project`); cube
             // texels are symmetric under the octahedral group, so the point rule's bands 1..3
             // cancel to rounding; probe pixels are not Gauss nodes, leaving O(h^2) (measured
             // 1.0e-3 for a 48-pixel probe).

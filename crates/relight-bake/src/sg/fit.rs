@@ -89,9 +89,6 @@ mod graph;
 pub mod target;
 mod vertex;
 
-#[cfg(test)]
-mod tests;
-
 pub use vertex::{ComponentFit, VertexFit};
 
 use super::transport::{TransportSource, VertexTransport};
@@ -430,3 +427,6 @@ fn relax_vertex(
         },
     )
 }
+
+#[cfg(test)]
+mod tests;

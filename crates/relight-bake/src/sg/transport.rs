@@ -23,8 +23,6 @@
 //!   threads.
 
 mod kernel;
-#[cfg(test)]
-mod tests;
 
 use super::SgBakeSettings;
 use crate::transport::{check_mesh_geometry, surface_ray, vertex_geometric_normals};
@@ -85,16 +83,30 @@ pub fn vertex_materials(mesh: &TriMesh, materials: &[Material]) -> Vec<Material>
     out.into_iter().map(|m| m.unwrap_or(fallback)).collect()
 }
 
+/// Why two materials cannot be blended ([`blend_materials`], [`blend_along_axis`]).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum BlendError {
+    /// The blend parameter is not in `[0, 1]`.
+    #[error("blend parameter {0} is not in [0, 1]")]
+    Parameter(f32),
+    /// The two materials are of different kinds (e.g. Lambert and GGX plastic).
+    #[error("cannot blend materials of different kinds: {0:?} and {1:?}")]
+    DifferentKinds(Material, Material),
+    /// The blend axis is zero or not finite.
+    #[error("blend axis {0} has no direction")]
+    Axis(Vec3),
+}
+
 /// Blend two materials of the same kind, `t = 0` giving `a` and `t = 1` giving `b`, for
 /// spatially varying BRDFs (thesis section 2.3.1, the "bird" of Fig. 2-4). Reflectances and
 /// the plastic's `ior` are interpolated linearly, the Blinn-Phong exponent and the GGX
 /// `alpha` geometrically (linearly in log space, so that the lobe width changes evenly).
 ///
 /// # Errors
-/// Materials of different kinds, or `t` not in `[0, 1]`.
-pub fn blend_materials(a: &Material, b: &Material, t: f32) -> Result<Material, String> {
+/// [`BlendError::DifferentKinds`], or [`BlendError::Parameter`] for `t` not in `[0, 1]`.
+pub fn blend_materials(a: &Material, b: &Material, t: f32) -> Result<Material, BlendError> {
     if !(0.0..=1.0).contains(&t) {
-        return Err(format!("blend parameter {t} is not in [0, 1]"));
+        return Err(BlendError::Parameter(t));
     }
     let lin = |x: Vec3, y: Vec3| x.lerp(y, t);
     let log = |x: f32, y: f32| (x.ln() + (y.ln() - x.ln()) * t).exp();
@@ -151,9 +163,7 @@ pub fn blend_materials(a: &Material, b: &Material, t: f32) -> Result<Material, S
             alpha: log(a0, a1),
             ior: i0 + (i1 - i0) * t,
         }),
-        _ => Err(format!(
-            "cannot blend materials of different kinds: {a:?} and {b:?}"
-        )),
+        _ => Err(BlendError::DifferentKinds(*a, *b)),
     }
 }
 
@@ -162,16 +172,15 @@ pub fn blend_materials(a: &Material, b: &Material, t: f32) -> Result<Material, S
 /// the highest (0 everywhere for a mesh flat across the axis).
 ///
 /// # Errors
-/// A zero or non-finite axis, or materials that [`blend_materials`] rejects.
+/// [`BlendError::Axis`] for a zero or non-finite axis, or materials that [`blend_materials`]
+/// rejects.
 pub fn blend_along_axis(
     mesh: &TriMesh,
     a: &Material,
     b: &Material,
     axis: Vec3,
-) -> Result<Vec<Material>, String> {
-    let axis = axis
-        .try_normalize()
-        .ok_or_else(|| format!("blend axis {axis} has no direction"))?;
+) -> Result<Vec<Material>, BlendError> {
+    let axis = axis.try_normalize().ok_or(BlendError::Axis(axis))?;
     blend_materials(a, b, 0.0)?;
     let proj: Vec<f32> = mesh.positions.iter().map(|p| p.dot(axis)).collect();
     let lo = proj.iter().copied().fold(f32::INFINITY, f32::min);
@@ -558,3 +567,6 @@ impl TransportSource for TransportContext<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

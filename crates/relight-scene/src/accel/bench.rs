@@ -212,40 +212,8 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
-
-    /// Minimal OBJ reader for tests and the benchmark (positions and faces only; polygons
-    /// fanned). The real importer lives in `crate::io`.
-    pub(crate) fn read_obj_positions(path: &std::path::Path) -> TriMesh {
-        let text = std::fs::read_to_string(path).expect("read OBJ");
-        let mut m = TriMesh::default();
-        for line in text.lines() {
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("v") => {
-                    let c: Vec<f32> = it.take(3).map(|x| x.parse().expect("vertex")).collect();
-                    m.positions.push(Vec3::new(c[0], c[1], c[2]));
-                }
-                Some("f") => {
-                    let n = m.positions.len() as i64;
-                    let idx: Vec<u32> = it
-                        .map(|w| {
-                            let i: i64 = w.split('/').next().unwrap().parse().expect("face index");
-                            (if i < 0 { n + i } else { i - 1 }) as u32
-                        })
-                        .collect();
-                    for k in 1..idx.len() - 1 {
-                        m.indices.push([idx[0], idx[k], idx[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
-        }
-        m.normals = vec![Vec3::Y; m.positions.len()];
-        m.material_ids = vec![0; m.indices.len()];
-        m
-    }
 
     #[test]
     fn surface_rays_leave_the_surface() {
@@ -283,52 +251,5 @@ pub(crate) mod tests {
         let backends = Backend::available().len() + cfg!(feature = "embree") as usize;
         assert_eq!(rows.len(), 2 * backends);
         assert!(rows.iter().all(|r| r.mrays_per_s > 0.0), "{rows:?}");
-    }
-
-    /// `cargo test --release -p relight-scene bench_dragon -- --ignored --nocapture`
-    #[test]
-    #[ignore]
-    fn bench_dragon() {
-        let Some(p) = crate::testdata::shared_file("data/meshes/dragon.obj") else {
-            return;
-        };
-        let m = read_obj_positions(&p);
-        for &b in Backend::available() {
-            let t0 = Instant::now();
-            let c = build(&m, b).unwrap();
-            eprintln!(
-                "build {:>13}: {:.1} ms",
-                c.name(),
-                t0.elapsed().as_secs_f64() * 1e3
-            );
-        }
-        let rays = 1 << 20;
-        // Agreement of the back-ends on this ray set.
-        let set = surface_rays(&m, rays, 1);
-        let answers: Vec<Vec<bool>> = Backend::available()
-            .iter()
-            .map(|&b| {
-                let c = build(&m, b).unwrap();
-                let mut o = vec![false; set.len()];
-                c.occluded_many(&set, &mut o);
-                o
-            })
-            .collect();
-        if answers.len() == 2 {
-            let diff = answers[0]
-                .iter()
-                .zip(&answers[1])
-                .filter(|(a, b)| a != b)
-                .count();
-            let occ = answers[0].iter().filter(|&&a| a).count();
-            eprintln!("occluded: {occ} of {rays}; back-ends disagree on {diff}");
-        }
-        eprintln!("{} triangles, {rays} rays, 2 threads", m.triangle_count());
-        for r in bench_occlusion(&m, rays, 1, 2) {
-            eprintln!(
-                "{:>13} {:>9}: {:6.2} Mrays/s  ratio to Embree {:.2}",
-                r.backend, r.query, r.mrays_per_s, r.ratio_to_embree
-            );
-        }
     }
 }

@@ -35,8 +35,11 @@
 //! culling. Degenerate triangles (zero cross product) and triangles with non-finite corners
 //! are left out of the tree: they are never hit.
 
+use super::AccelError;
 use crate::mesh::TriMesh;
 use crate::Vec3;
+
+mod traverse;
 
 /// Largest number of triangles in a leaf: one SoA pack.
 pub const LEAF_MAX: usize = 4;
@@ -86,8 +89,8 @@ fn usable([a, b, c]: [Vec3; 3]) -> bool {
 /// Returns the number of usable triangles.
 ///
 /// # Errors
-/// Out-of-range vertex index, or no usable triangle.
-pub(crate) fn check_mesh(mesh: &TriMesh) -> Result<usize, String> {
+/// [`AccelError::IndexOutOfRange`] or [`AccelError::NoUsableTriangle`].
+pub(crate) fn check_mesh(mesh: &TriMesh) -> Result<usize, AccelError> {
     let nv = mesh.positions.len();
     if let Some((i, t)) = mesh
         .indices
@@ -95,18 +98,19 @@ pub(crate) fn check_mesh(mesh: &TriMesh) -> Result<usize, String> {
         .enumerate()
         .find(|(_, t)| t.iter().any(|&k| k as usize >= nv))
     {
-        return Err(format!(
-            "triangle {i} has vertex index out of range: {t:?} ({nv} vertices)"
-        ));
+        return Err(AccelError::IndexOutOfRange {
+            triangle: i,
+            indices: *t,
+            vertices: nv,
+        });
     }
     let n = (0..mesh.triangle_count())
         .filter(|&t| usable(mesh.triangle(t)))
         .count();
     if n == 0 {
-        return Err(format!(
-            "mesh has no usable triangle ({} triangles, all degenerate or non-finite)",
-            mesh.triangle_count()
-        ));
+        return Err(AccelError::NoUsableTriangle {
+            triangles: mesh.triangle_count(),
+        });
     }
     Ok(n)
 }
@@ -335,8 +339,9 @@ impl Bvh {
     /// Build over `mesh` with `preset`.
     ///
     /// # Errors
-    /// Out-of-range vertex index, or no usable (finite, non-degenerate) triangle.
-    pub fn build(mesh: &TriMesh, preset: BuildPreset) -> Result<Bvh, String> {
+    /// [`AccelError::IndexOutOfRange`], or [`AccelError::NoUsableTriangle`] when no triangle
+    /// is finite and non-degenerate.
+    pub fn build(mesh: &TriMesh, preset: BuildPreset) -> Result<Bvh, AccelError> {
         check_mesh(mesh)?;
         let tris: Vec<Option<[Vec3; 3]>> = (0..mesh.triangle_count())
             .map(|t| Some(mesh.triangle(t)).filter(|&c| usable(c)))
@@ -447,10 +452,10 @@ impl Bvh {
     /// enough.
     ///
     /// # Errors
-    /// A message naming the first violated invariant.
-    pub fn validate(&self) -> Result<(), String> {
+    /// The first violated invariant.
+    pub fn validate(&self) -> Result<(), BvhError> {
         if self.nodes.is_empty() {
-            return Err("no root node".into());
+            return Err(BvhError::NoRoot);
         }
         let mut node_seen = vec![false; self.nodes.len()];
         let mut pack_seen = vec![false; self.packs.len()];
@@ -468,104 +473,280 @@ impl Bvh {
                 let sb = slot_box(node, s);
                 if code == EMPTY {
                     if sb.lo.cmplt(Vec3::INFINITY).any() || sb.hi.cmpgt(Vec3::NEG_INFINITY).any() {
-                        return Err(format!(
-                            "node {n} slot {s}: unused slot with a non-empty box"
-                        ));
+                        return Err(BvhError::NonEmptyUnusedSlot { node: n, slot: s });
                     }
                     continue;
                 }
                 used += 1;
                 if !(sb.lo.cmple(sb.hi).all()) || !sb.lo.is_finite() || !sb.hi.is_finite() {
-                    return Err(format!("node {n} slot {s}: invalid box {sb:?}"));
+                    return Err(BvhError::InvalidBox {
+                        node: n,
+                        slot: s,
+                        lo: sb.lo,
+                        hi: sb.hi,
+                    });
                 }
                 if let Some(pb) = parent_box {
                     if !pb.contains(sb) {
-                        return Err(format!(
-                            "node {n} slot {s}: box {sb:?} outside parent {pb:?}"
-                        ));
+                        return Err(BvhError::OutsideParent {
+                            node: n,
+                            slot: s,
+                            lo: sb.lo,
+                            hi: sb.hi,
+                            parent_lo: pb.lo,
+                            parent_hi: pb.hi,
+                        });
                     }
                 }
                 if code & LEAF_BIT != 0 {
                     let p = (code & !LEAF_BIT) as usize;
                     if p >= self.packs.len() || std::mem::replace(&mut pack_seen[p], true) {
-                        return Err(format!(
-                            "node {n} slot {s}: pack {p} out of range or shared"
-                        ));
+                        return Err(BvhError::BadPack {
+                            node: n,
+                            slot: s,
+                            pack: p,
+                        });
                     }
                     self.validate_pack(p, sb, &mut tri_seen)?;
                 } else {
                     let c = code as usize;
                     if c <= n || c >= self.nodes.len() || std::mem::replace(&mut node_seen[c], true)
                     {
-                        return Err(format!(
-                            "node {n} slot {s}: child node {c} invalid or shared"
-                        ));
+                        return Err(BvhError::BadChild {
+                            node: n,
+                            slot: s,
+                            child: c,
+                        });
                     }
                     todo.push((c, Some(sb), depth + 1));
                 }
             }
             if used == 0 || (used == 1 && n != 0) {
-                return Err(format!("node {n} has {used} children"));
+                return Err(BvhError::ChildCount {
+                    node: n,
+                    children: used,
+                });
             }
         }
         if let Some(n) = node_seen.iter().position(|s| !s) {
-            return Err(format!("node {n} unreachable"));
+            return Err(BvhError::UnreachableNode { node: n });
         }
         if let Some(p) = pack_seen.iter().position(|s| !s) {
-            return Err(format!("pack {p} unreachable"));
+            return Err(BvhError::UnreachablePack { pack: p });
         }
         for (t, (&seen, tri)) in tri_seen.iter().zip(&self.tris).enumerate() {
             let want = tri.is_some() as u32;
             if seen != want {
-                return Err(format!(
-                    "triangle {t} referenced {seen} times, expected {want}"
-                ));
+                return Err(BvhError::TriangleCount {
+                    triangle: t,
+                    count: seen,
+                    expected: want,
+                });
             }
         }
         if 7 * max_depth + 1 > STACK {
-            return Err(format!(
-                "depth {max_depth} can overflow the {STACK}-entry stack"
-            ));
+            return Err(BvhError::TooDeep {
+                depth: max_depth,
+                stack: STACK,
+            });
         }
         Ok(())
     }
 
-    fn validate_pack(&self, p: usize, leaf_box: Aabb, tri_seen: &mut [u32]) -> Result<(), String> {
+    fn validate_pack(
+        &self,
+        p: usize,
+        leaf_box: Aabb,
+        tri_seen: &mut [u32],
+    ) -> Result<(), BvhError> {
         let pack = &self.packs[p];
         let count = pack.prim.iter().take_while(|&&t| t != u32::MAX).count();
         if count == 0 || pack.prim[count..].iter().any(|&t| t != u32::MAX) {
-            return Err(format!(
-                "pack {p}: lanes {:?} not 1..=4 filled then padding",
-                pack.prim
-            ));
+            return Err(BvhError::PackLanes {
+                pack: p,
+                lanes: pack.prim,
+            });
         }
         for lane in 0..4 {
             let corner =
                 |k: usize| Vec3::new(pack.v[k][0][lane], pack.v[k][1][lane], pack.v[k][2][lane]);
             if lane >= count {
                 if (0..3).any(|k| !corner(k).is_nan()) {
-                    return Err(format!("pack {p} lane {lane}: padding lane not NaN"));
+                    return Err(BvhError::PaddingNotNan { pack: p, lane });
                 }
                 continue;
             }
             let t = pack.prim[lane] as usize;
             let Some(Some(tri)) = self.tris.get(t) else {
-                return Err(format!("pack {p} lane {lane}: triangle {t} not usable"));
+                return Err(BvhError::UnusableTriangle {
+                    pack: p,
+                    lane,
+                    triangle: t,
+                });
             };
             tri_seen[t] += 1;
             for (k, c) in tri.iter().enumerate() {
                 if corner(k) != *c {
-                    return Err(format!(
-                        "pack {p} lane {lane}: corner {k} differs from the mesh"
-                    ));
+                    return Err(BvhError::CornerMismatch {
+                        pack: p,
+                        lane,
+                        corner: k,
+                    });
                 }
                 if !leaf_box.contains(Aabb { lo: *c, hi: *c }) {
-                    return Err(format!("pack {p} lane {lane}: corner outside the leaf box"));
+                    return Err(BvhError::CornerOutsideLeaf { pack: p, lane });
                 }
             }
         }
         Ok(())
     }
+}
+
+/// The first invariant of a [`Bvh`] found violated by [`Bvh::validate`]. A valid mesh always
+/// builds a valid tree, so any of these is a bug in the builder (or a corrupted tree).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum BvhError {
+    /// The tree has no node at all.
+    #[error("no root node")]
+    NoRoot,
+    /// An unused child slot has a box other than the empty one.
+    #[error("node {node} slot {slot}: unused slot with a non-empty box")]
+    NonEmptyUnusedSlot {
+        /// Node index.
+        node: usize,
+        /// Child slot, `0..8`.
+        slot: usize,
+    },
+    /// A used child slot has an inverted or non-finite box.
+    #[error("node {node} slot {slot}: invalid box [{lo}, {hi}]")]
+    InvalidBox {
+        /// Node index.
+        node: usize,
+        /// Child slot, `0..8`.
+        slot: usize,
+        /// Box minimum.
+        lo: Vec3,
+        /// Box maximum.
+        hi: Vec3,
+    },
+    /// A child's box is not inside the box its parent stores for it.
+    #[error("node {node} slot {slot}: box [{lo}, {hi}] outside parent [{parent_lo}, {parent_hi}]")]
+    OutsideParent {
+        /// Node index.
+        node: usize,
+        /// Child slot, `0..8`.
+        slot: usize,
+        /// Box minimum.
+        lo: Vec3,
+        /// Box maximum.
+        hi: Vec3,
+        /// Minimum of the parent's slot box.
+        parent_lo: Vec3,
+        /// Maximum of the parent's slot box.
+        parent_hi: Vec3,
+    },
+    /// A leaf slot's triangle pack does not exist or is referenced twice.
+    #[error("node {node} slot {slot}: pack {pack} out of range or shared")]
+    BadPack {
+        /// Node index.
+        node: usize,
+        /// Child slot, `0..8`.
+        slot: usize,
+        /// Pack index.
+        pack: usize,
+    },
+    /// An inner slot's child does not exist, is not after its parent, or is referenced twice.
+    #[error("node {node} slot {slot}: child node {child} invalid or shared")]
+    BadChild {
+        /// Node index.
+        node: usize,
+        /// Child slot, `0..8`.
+        slot: usize,
+        /// Child node index.
+        child: usize,
+    },
+    /// A node has no child, or a non-root node has a single one.
+    #[error("node {node} has {children} children")]
+    ChildCount {
+        /// Node index.
+        node: usize,
+        /// Used slots.
+        children: usize,
+    },
+    /// A node is not reached from the root.
+    #[error("node {node} unreachable")]
+    UnreachableNode {
+        /// Node index.
+        node: usize,
+    },
+    /// A triangle pack is not reached from the root.
+    #[error("pack {pack} unreachable")]
+    UnreachablePack {
+        /// Pack index.
+        pack: usize,
+    },
+    /// A usable triangle is not in exactly one leaf, or an unusable one is in the tree.
+    #[error("triangle {triangle} referenced {count} times, expected {expected}")]
+    TriangleCount {
+        /// Mesh triangle index.
+        triangle: usize,
+        /// Leaves holding it.
+        count: u32,
+        /// 1 for a usable triangle, 0 otherwise.
+        expected: u32,
+    },
+    /// The tree is deeper than the traversal stack can hold.
+    #[error("depth {depth} can overflow the {stack}-entry stack")]
+    TooDeep {
+        /// Depth of the tree.
+        depth: usize,
+        /// Entries of the traversal stack.
+        stack: usize,
+    },
+    /// A pack's lanes are not 1 to 4 triangles followed by padding.
+    #[error("pack {pack}: lanes {lanes:?} not 1..=4 filled then padding")]
+    PackLanes {
+        /// Pack index.
+        pack: usize,
+        /// Its triangle ids (`u32::MAX` = padding).
+        lanes: [u32; 4],
+    },
+    /// A padding lane holds a corner that is not NaN (so it could be hit).
+    #[error("pack {pack} lane {lane}: padding lane not NaN")]
+    PaddingNotNan {
+        /// Pack index.
+        pack: usize,
+        /// Lane, `0..4`.
+        lane: usize,
+    },
+    /// A pack references a triangle that is not usable or does not exist.
+    #[error("pack {pack} lane {lane}: triangle {triangle} not usable")]
+    UnusableTriangle {
+        /// Pack index.
+        pack: usize,
+        /// Lane, `0..4`.
+        lane: usize,
+        /// Mesh triangle index.
+        triangle: usize,
+    },
+    /// A corner stored in a pack differs from the mesh's.
+    #[error("pack {pack} lane {lane}: corner {corner} differs from the mesh")]
+    CornerMismatch {
+        /// Pack index.
+        pack: usize,
+        /// Lane, `0..4`.
+        lane: usize,
+        /// Corner, `0..3`.
+        corner: usize,
+    },
+    /// A triangle corner lies outside its leaf's box.
+    #[error("pack {pack} lane {lane}: corner outside the leaf box")]
+    CornerOutsideLeaf {
+        /// Pack index.
+        pack: usize,
+        /// Lane, `0..4`.
+        lane: usize,
+    },
 }
 
 fn empty_node() -> Node8 {
@@ -591,9 +772,5 @@ fn slot_box(n: &Node8, s: usize) -> Aabb {
     }
 }
 
-#[path = "bvh_traverse.rs"]
-mod traverse;
-
 #[cfg(test)]
-#[path = "bvh_tests.rs"]
 pub(crate) mod tests;

@@ -10,7 +10,7 @@
 //! `rtcOccluded*` calls on one scene from any number of threads (Embree 3 API docs,
 //! "rtcCommitScene"), which is why [`EmbreeScene`] is `Send + Sync`.
 
-use super::{Hit, Ray, RayCaster};
+use super::{AccelError, Hit, Ray, RayCaster};
 use crate::mesh::TriMesh;
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::Mutex;
@@ -161,7 +161,7 @@ extern "C" fn on_error(user: *mut c_void, code: u32, msg: *const c_char) {
             .into_owned()
     };
     if let Ok(mut s) = slot.lock() {
-        s.get_or_insert_with(|| format!("Embree error {code}: {text}"));
+        s.get_or_insert_with(|| format!("error {code}: {text}"));
     }
 }
 
@@ -173,11 +173,14 @@ struct Device {
 }
 
 impl Device {
-    fn new() -> Result<Self, String> {
+    fn new() -> Result<Self, AccelError> {
         // SAFETY: a null config string selects Embree's defaults.
         let raw = unsafe { sys::rtcNewDevice(std::ptr::null()) };
         if raw.is_null() {
-            return Err("Embree: rtcNewDevice failed (unsupported CPU or library missing)".into());
+            return Err(AccelError::Embree {
+                call: "rtcNewDevice",
+                message: "failed (unsupported CPU or library missing)".into(),
+            });
         }
         let error = Box::new(Mutex::new(None));
         let user = &*error as *const Mutex<Option<String>> as *mut c_void;
@@ -187,14 +190,17 @@ impl Device {
     }
 
     /// `Err` with the callback's message (or the bare code) if Embree reported an error.
-    fn check(&self, what: &str) -> Result<(), String> {
+    fn check(&self, call: &'static str) -> Result<(), AccelError> {
         // SAFETY: live device.
         let code = unsafe { sys::rtcGetDeviceError(self.raw) };
         let msg = self.error.lock().ok().and_then(|mut s| s.take());
         match (code, msg) {
             (0, None) => Ok(()),
-            (_, Some(m)) => Err(format!("{what}: {m}")),
-            (c, None) => Err(format!("{what}: Embree error code {c}")),
+            (_, Some(message)) => Err(AccelError::Embree { call, message }),
+            (c, None) => Err(AccelError::Embree {
+                call,
+                message: format!("error code {c}"),
+            }),
         }
     }
 }
@@ -226,7 +232,7 @@ impl EmbreeScene {
     ///
     /// # Errors
     /// Mesh without usable triangles, out-of-range indices, or any Embree device error.
-    pub fn build(mesh: &TriMesh) -> Result<Self, String> {
+    pub fn build(mesh: &TriMesh) -> Result<Self, AccelError> {
         super::bvh::check_mesh(mesh)?;
         Self::build_with_flags(mesh, 0)
     }
@@ -236,12 +242,12 @@ impl EmbreeScene {
     ///
     /// # Errors
     /// As [`EmbreeScene::build`].
-    pub fn build_robust(mesh: &TriMesh) -> Result<Self, String> {
+    pub fn build_robust(mesh: &TriMesh) -> Result<Self, AccelError> {
         super::bvh::check_mesh(mesh)?;
         Self::build_with_flags(mesh, sys::RTC_SCENE_FLAG_ROBUST)
     }
 
-    fn build_with_flags(mesh: &TriMesh, flags: u32) -> Result<Self, String> {
+    fn build_with_flags(mesh: &TriMesh, flags: u32) -> Result<Self, AccelError> {
         let device = Device::new()?;
         // SAFETY: every handle below comes from `device` and is checked for null; buffers
         // returned by rtcSetNewGeometryBuffer hold `count * stride` bytes (plus Embree's own
@@ -250,7 +256,10 @@ impl EmbreeScene {
             let scene = sys::rtcNewScene(device.raw);
             if scene.is_null() {
                 device.check("rtcNewScene")?;
-                return Err("Embree: rtcNewScene returned null".into());
+                return Err(AccelError::Embree {
+                    call: "rtcNewScene",
+                    message: "returned null".into(),
+                });
             }
             // From here on the scene is owned by `this`, so early returns release it.
             let robust = flags & sys::RTC_SCENE_FLAG_ROBUST != 0;
@@ -264,7 +273,10 @@ impl EmbreeScene {
             let geom = sys::rtcNewGeometry(this.device.raw, sys::RTC_GEOMETRY_TYPE_TRIANGLE);
             if geom.is_null() {
                 this.device.check("rtcNewGeometry")?;
-                return Err("Embree: rtcNewGeometry returned null".into());
+                return Err(AccelError::Embree {
+                    call: "rtcNewGeometry",
+                    message: "returned null".into(),
+                });
             }
             let nv = mesh.positions.len();
             let nt = mesh.indices.len();
@@ -287,7 +299,10 @@ impl EmbreeScene {
             if vb.is_null() || ib.is_null() {
                 sys::rtcReleaseGeometry(geom);
                 this.device.check("rtcSetNewGeometryBuffer")?;
-                return Err("Embree: rtcSetNewGeometryBuffer returned null".into());
+                return Err(AccelError::Embree {
+                    call: "rtcSetNewGeometryBuffer",
+                    message: "returned null".into(),
+                });
             }
             for (i, p) in mesh.positions.iter().enumerate() {
                 vb.add(i).write_unaligned(p.to_array());
@@ -299,7 +314,7 @@ impl EmbreeScene {
             sys::rtcAttachGeometry(scene, geom);
             sys::rtcReleaseGeometry(geom);
             sys::rtcCommitScene(scene);
-            this.device.check("Embree scene build")?;
+            this.device.check("scene build (rtcCommitScene)")?;
             Ok(this)
         }
     }
@@ -456,7 +471,12 @@ mod tests {
         assert!(g.is_null());
         let err = device.check("rtcNewGeometry").unwrap_err();
         assert!(
-            err.contains("rtcNewGeometry") && err.contains("Embree"),
+            matches!(&err, AccelError::Embree { call: "rtcNewGeometry", message } if message.starts_with("error ")),
+            "{err:?}"
+        );
+        assert!(
+            err.to_string()
+                .starts_with("Embree: rtcNewGeometry: error "),
             "{err}"
         );
         // The error is consumed: the device is usable again.

@@ -57,6 +57,9 @@ fn settings_validate() {
             ..Default::default()
         },
     ];
+    let e = bad[0].validate().unwrap_err();
+    assert_eq!(e, DecomposeSettingsError::ShOrder(0));
+    assert!(e.to_string().starts_with("sh_order 0 "), "{e}");
     for b in bad {
         assert!(b.validate().is_err(), "{b:?}");
         let m = EnvMap::constant(Vec3::ONE);
@@ -518,28 +521,6 @@ fn sun_and_sky_gives_the_sun() {
     assert!(rel < 0.01, "{rel}");
     // The circumsolar glow is smooth: at most one more (weak) light.
     assert!(d.lights.len() <= 2, "{:?}", d.lights);
-}
-
-#[test]
-#[ignore]
-fn bench_cube_64() {
-    let map = sky_with_discs(64, &[one_disc()]);
-    let t0 = std::time::Instant::now();
-    let dec = Decomposer::new(&DecomposeSettings::default(), EnvLayout::Cube, 64, 384).unwrap();
-    eprintln!(
-        "tables for a 6x64x64 cube: {:.1} ms",
-        t0.elapsed().as_secs_f64() * 1e3
-    );
-    let t0 = std::time::Instant::now();
-    let big = EnvMap::latlong(1024, 513, vec![Vec3::ZERO; 1024 * 513]);
-    let _ = Decomposer::new(&DecomposeSettings::default(), EnvLayout::LatLong, 1024, 513).unwrap();
-    eprintln!(
-        "tables for a 1024x513 latlong: {:.1} ms",
-        t0.elapsed().as_secs_f64() * 1e3
-    );
-    let _ = (dec.run(&map), big);
-    let ms = bench_decompose();
-    eprintln!("decompose 6x64x64 cube: {ms:.3} ms per frame");
 }
 
 #[test]

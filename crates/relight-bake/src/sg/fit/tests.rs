@@ -10,8 +10,6 @@ use relight_sphere::sg::{eval_mixture, unit_integral};
 use relight_sphere::sg_fit::{self, FitOptions};
 use relight_sphere::warp::Rng;
 
-mod timing;
-
 /// A synthetic transport: `f(x, v, w)` tabulated on the texels of every view.
 struct Synthetic<F: Fn(usize, usize, Vec3) -> Vec3 + Sync> {
     vertices: usize,
@@ -167,16 +165,6 @@ fn glossy(n: Vec3, v: Vec3, w: Vec3, mask: Vec3, brdf: (bool, f32)) -> Vec3 {
         a2 / (std::f32::consts::PI * dd) * g(cos_i) * g(cos_o) / (4.0 * cos_i * cos_o)
     };
     Vec3::new(0.9, 0.7, 0.5) * f * cos_i
-}
-
-/// The view direction clamped 5 degrees above the horizon (as the bake does).
-fn clamped_view(n: Vec3, d: Vec3) -> Vec3 {
-    let s = 5f32.to_radians().sin();
-    if d.dot(n) >= s {
-        return d;
-    }
-    let t = (d - n * d.dot(n)).normalize_or(n.any_orthonormal_vector());
-    (n * s + t * (1.0 - s * s).sqrt()).normalize()
 }
 
 #[test]

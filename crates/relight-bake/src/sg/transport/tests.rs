@@ -476,107 +476,28 @@ fn materials_per_vertex_and_blends() {
     }
     let g = blend_materials(&conductor(0.01), &conductor(1.0), 0.5).unwrap();
     assert!(matches!(g, Material::GgxConductor { alpha, .. } if (alpha - 0.1).abs() < 1e-5));
-    assert!(blend_materials(&a, &conductor(0.3), 0.5)
-        .unwrap_err()
-        .contains("different kinds"));
-    assert!(blend_materials(&a, &b, 1.5).is_err());
+    let e = blend_materials(&a, &conductor(0.3), 0.5).unwrap_err();
+    assert_eq!(e, BlendError::DifferentKinds(a, conductor(0.3)));
+    assert!(e.to_string().contains("different kinds"), "{e}");
+    assert_eq!(
+        blend_materials(&a, &b, 1.5),
+        Err(BlendError::Parameter(1.5))
+    );
     // Along X: t = 0 at x = -2, 1 at x = 2; vertex 4 (x = 0) halfway.
     let blended = blend_along_axis(&mesh, &a, &b, Vec3::X * 3.0).unwrap();
     for (p, m) in mesh.positions.iter().zip(&blended) {
         let t = (p.x + 2.0) / 4.0;
         assert_eq!(*m, blend_materials(&a, &b, t).unwrap(), "{p}");
     }
-    assert!(blend_along_axis(&mesh, &a, &b, Vec3::ZERO).is_err());
+    assert_eq!(
+        blend_along_axis(&mesh, &a, &b, Vec3::ZERO),
+        Err(BlendError::Axis(Vec3::ZERO))
+    );
     // Flat across the axis: t = 0 everywhere.
     assert!(blend_along_axis(&mesh, &a, &b, Vec3::Y)
         .unwrap()
         .iter()
         .all(|m| *m == a));
-}
-
-/// `cargo test --release -p relight-bake sg::transport -- --ignored --nocapture`
-#[test]
-#[ignore = "timing: run on demand"]
-fn time_per_vertex_armadillo() {
-    let Some(path) = relight_scene::testdata::shared_file("data/meshes/armadillo.obj") else {
-        return;
-    };
-    let loaded = relight_scene::io::load_mesh(&path).unwrap();
-    let mesh = loaded.mesh;
-    let caster = build_default(&mesh);
-    let s = SgBakeSettings::default();
-    let n = mesh.vertex_count();
-    let sample: Vec<usize> = (0..150).map(|i| i * n / 150).collect();
-    let mats = [
-        Material::GgxPlastic {
-            diffuse: Vec3::splat(0.5),
-            specular: Vec3::ONE,
-            alpha: 0.2,
-            ior: 1.49,
-        },
-        conductor(0.2),
-        Material::BlinnPhong {
-            diffuse: Vec3::splat(0.3),
-            specular: Vec3::splat(0.5),
-            exponent: 50.0,
-        },
-    ];
-    for m in mats {
-        let ctx = TransportContext::new(&mesh, vec![m; n], caster.as_ref(), &s).unwrap();
-        let mut out = VertexTransport::default();
-        ctx.compute(sample[0], &mut out);
-        let (mut t_vis, mut t_direct, mut t_indirect) = (0.0f64, 0.0f64, 0.0f64);
-        let t0 = std::time::Instant::now();
-        let c0 = thread_cpu_seconds();
-        for &x in &sample {
-            ctx.compute(x, &mut out);
-        }
-        let wall_ms = t0.elapsed().as_secs_f64() * 1e3 / sample.len() as f64;
-        let cpu_ms = (thread_cpu_seconds() - c0) * 1e3 / sample.len() as f64;
-        // Phases, on the same vertices.
-        for &x in &sample {
-            let Some(nrm) = ctx.normal(x) else { continue };
-            let frame = Frame::from_normal(nrm);
-            let t = thread_cpu_seconds();
-            let visible = ctx.visible_texels(x, &frame);
-            t_vis += thread_cpu_seconds() - t;
-            let t = thread_cpu_seconds();
-            let td = ctx.direct.len();
-            let mut kernel = GlossyKernel::new(&m, &visible, td);
-            let mut wis = Vec::new();
-            for (v, cube) in out.direct.chunks_exact_mut(td).enumerate() {
-                let wi = frame.to_local(ctx.clamp_view(nrm, ctx.views[v]).0);
-                wis.push(wi);
-                kernel.eval_view(wi, cube);
-            }
-            t_direct += thread_cpu_seconds() - t;
-            let t = thread_cpu_seconds();
-            out.indirect.fill(Vec3::ZERO);
-            ctx.indirect(x, &frame, &wis, &mut out.indirect);
-            t_indirect += thread_cpu_seconds() - t;
-        }
-        let per = |t: f64| t * 1e3 / sample.len() as f64;
-        eprintln!(
-            "armadillo ({n} vertices, {}), {m:?}: {wall_ms:.2} ms per vertex wall, {cpu_ms:.2} \
-             ms CPU (CPU: visibility {:.2}, direct {:.2}, indirect {:.2}); {:.1} min of CPU \
-             for all vertices on 2 cores",
-            caster.name(),
-            per(t_vis),
-            per(t_direct),
-            per(t_indirect),
-            cpu_ms * n as f64 / 2.0 / 60e3
-        );
-    }
-}
-
-/// CPU time of the calling thread (Linux `/proc/thread-self/schedstat`, nanoseconds on the
-/// CPU), so that timings on a loaded machine measure our work, not the queue; falls back to
-/// 0 elsewhere.
-fn thread_cpu_seconds() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
-        .map_or(0.0, |ns| ns * 1e-9)
 }
 
 #[test]

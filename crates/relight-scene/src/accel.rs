@@ -115,18 +115,53 @@ impl Backend {
     }
 }
 
+/// Why a ray caster could not be built ([`build`], [`bvh::Bvh::build`],
+/// `embree::EmbreeScene::build`).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum AccelError {
+    /// A triangle references a vertex that does not exist.
+    #[error(
+        "triangle {triangle} has vertex index out of range: {indices:?} ({vertices} vertices)"
+    )]
+    IndexOutOfRange {
+        /// Triangle index.
+        triangle: usize,
+        /// Its vertex indices.
+        indices: [u32; 3],
+        /// Vertices in the mesh.
+        vertices: usize,
+    },
+    /// No triangle has finite corners and a non-zero area (this includes an empty mesh).
+    #[error("mesh has no usable triangle ({triangles} triangles, all degenerate or non-finite)")]
+    NoUsableTriangle {
+        /// Triangles in the mesh.
+        triangles: usize,
+    },
+    /// [`Backend::Embree`] was asked of a build without the `embree` feature.
+    #[error("relight was built without the `embree` feature")]
+    EmbreeNotBuilt,
+    /// An Embree call returned null or reported a device error.
+    #[error("Embree: {call}: {message}")]
+    Embree {
+        /// The Embree function (or step) that failed.
+        call: &'static str,
+        /// Embree's error code and message, or what went wrong.
+        message: String,
+    },
+}
+
 /// Build a ray caster over `mesh` with `backend`.
 ///
 /// # Errors
 /// An empty mesh (no triangle with finite, non-degenerate corners), out-of-range vertex
 /// indices, an Embree device error, or `Backend::Embree` without the `embree` feature.
-pub fn build(mesh: &TriMesh, backend: Backend) -> Result<Box<dyn RayCaster>, String> {
+pub fn build(mesh: &TriMesh, backend: Backend) -> Result<Box<dyn RayCaster>, AccelError> {
     match backend {
         Backend::Bvh => Ok(Box::new(bvh::Bvh::build(mesh, bvh::BuildPreset::Quality)?)),
         #[cfg(feature = "embree")]
         Backend::Embree => Ok(Box::new(embree::EmbreeScene::build(mesh)?)),
         #[cfg(not(feature = "embree"))]
-        Backend::Embree => Err("relight was built without the `embree` feature".into()),
+        Backend::Embree => Err(AccelError::EmbreeNotBuilt),
     }
 }
 
@@ -136,14 +171,17 @@ pub fn build(mesh: &TriMesh, backend: Backend) -> Result<Box<dyn RayCaster>, Str
 /// # Panics
 /// If no back-end can be built (e.g. an empty mesh); use [`build`] to handle that.
 pub fn build_default(mesh: &TriMesh) -> Box<dyn RayCaster> {
-    let mut last_err = String::new();
+    let mut last_err = None;
     for &b in Backend::available() {
         match build(mesh, b) {
             Ok(c) => return c,
-            Err(e) => last_err = e,
+            Err(e) => last_err = Some(e),
         }
     }
-    panic!("no ray-casting back-end could be built: {last_err}");
+    match last_err {
+        Some(e) => panic!("no ray-casting back-end could be built: {e}"),
+        None => panic!("no ray-casting back-end is compiled in"),
+    }
 }
 
 /// Move a ray origin `p` on a surface with geometric normal `ng` off that surface, to the side

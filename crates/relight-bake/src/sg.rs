@@ -214,8 +214,8 @@ fn yes() -> bool {
 /// `vertex_materials` overrides it (spatially varying BRDFs, thesis section 2.3.1).
 ///
 /// # Errors
-/// [`BakeError::Settings`] for out-of-range settings, [`BakeError::Scene`] for an
-/// inconsistent mesh.
+/// [`crate::BakeError::Settings`] for out-of-range settings, [`crate::BakeError::Scene`] for
+/// an inconsistent mesh.
 pub fn bake(
     mesh: &relight_scene::mesh::TriMesh,
     materials: &[Material],

@@ -3,7 +3,7 @@
 use super::traverse::{sort4, sort8};
 use super::*;
 use crate::accel::bench::SplitMix64;
-use crate::accel::{build, Backend, Ray, RayCaster};
+use crate::accel::{build, AccelError, Backend, Ray, RayCaster};
 
 fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> TriMesh {
     TriMesh {
@@ -348,11 +348,21 @@ fn embree_robust_is_watertight() {
 #[test]
 fn empty_and_invalid_meshes_are_errors() {
     for &backend in Backend::available() {
-        assert!(build(&TriMesh::default(), backend).is_err());
+        assert_eq!(
+            build(&TriMesh::default(), backend).err(),
+            Some(AccelError::NoUsableTriangle { triangles: 0 })
+        );
         let degenerate = mesh(vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0], vec![[0, 1, 2]]);
-        assert!(build(&degenerate, backend).is_err());
+        assert_eq!(
+            build(&degenerate, backend).err(),
+            Some(AccelError::NoUsableTriangle { triangles: 1 })
+        );
         let out_of_range = mesh(vec![Vec3::ZERO, Vec3::X, Vec3::Y], vec![[0, 1, 3]]);
-        assert!(build(&out_of_range, backend).is_err());
+        let e = build(&out_of_range, backend).err().unwrap();
+        assert_eq!(
+            e.to_string(),
+            "triangle 0 has vertex index out of range: [0, 1, 3] (3 vertices)"
+        );
     }
 }
 
@@ -416,7 +426,14 @@ fn validate_catches_corruption() {
     // Shrink a child box: it no longer holds its triangles.
     let mut b = Bvh::build(&m, BuildPreset::Quality).unwrap();
     b.nodes[0].hi[0][0] = b.nodes[0].lo[0][0];
-    assert!(b.validate().is_err());
+    assert!(
+        matches!(
+            b.validate(),
+            Err(BvhError::OutsideParent { .. } | BvhError::CornerOutsideLeaf { .. })
+        ),
+        "{:?}",
+        b.validate()
+    );
     // Reference a triangle twice.
     let mut b = Bvh::build(&m, BuildPreset::Quality).unwrap();
     b.packs[1].prim[0] = b.packs[0].prim[0];
@@ -424,5 +441,13 @@ fn validate_catches_corruption() {
     // Lose a triangle.
     let mut b = Bvh::build(&m, BuildPreset::Quality).unwrap();
     b.tris.push(Some(m.triangle(0)));
-    assert!(b.validate().is_err());
+    let t = m.triangle_count();
+    assert_eq!(
+        b.validate(),
+        Err(BvhError::TriangleCount {
+            triangle: t,
+            count: 0,
+            expected: 1
+        })
+    );
 }

@@ -64,10 +64,10 @@
 //! point-rule leakage of a constant is at rounding level (its texels are symmetric under the
 //! octahedral group); the probe's is about 1e-3 of `L_00` for a 48-pixel probe.
 
+use super::rotate::ShRotation;
+use super::{sh_count, sh_index, MAX_ORDER};
 use crate::envmap::{EnvLayout, EnvMap};
 use crate::quadrature::gauss_legendre;
-use crate::sh::{sh_count, sh_index, MAX_ORDER};
-use crate::sh_rotate::ShRotation;
 use crate::{Mat3, Vec3};
 use std::f64::consts::PI;
 
@@ -824,45 +824,5 @@ mod tests {
         let ra = ShRotation::new(order, rot).apply(&a);
         let err = max_abs(&ra.iter().zip(&b).map(|(x, y)| *x - *y).collect::<Vec<_>>());
         assert!(err < 1e-5 * max_abs(&b), "{err}");
-    }
-
-    #[test]
-    #[ignore]
-    fn bench_latlong_projection() {
-        // cargo test --release -p relight-sphere bench_latlong_projection -- --ignored --nocapture
-        let (w, h, order) = (1024usize, 512usize, 10usize);
-        let mut rng = Rng::new(1, 1);
-        let tex: Vec<Vec3> = (0..w * h)
-            .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
-            .collect();
-        let map = EnvMap::latlong(w, h, tex);
-        let time = |f: &dyn Fn() -> Vec<Vec3>| {
-            let mut best = f64::MAX;
-            let mut out = Vec::new();
-            for _ in 0..5 {
-                let t = std::time::Instant::now();
-                out = f();
-                best = best.min(t.elapsed().as_secs_f64());
-            }
-            (best, out)
-        };
-        let (t_exact, a) = time(&|| project_latlong(&map, order));
-        let pr = LatLongProjector::new(w, h, order);
-        let (t_reuse, _) = time(&|| pr.project(map.texels()));
-        let (t_table, _) = time(&|| {
-            let p = LatLongProjector::new(w, h, order);
-            vec![Vec3::splat(p.order() as f32)]
-        });
-        let (t_point, b) = time(&|| project_env_point_rule(&map, order));
-        let diff = max_abs(&a.iter().zip(&b).map(|(x, y)| *x - *y).collect::<Vec<_>>());
-        eprintln!(
-            "{w}x{h} order {order} (best of 5): exact {:.1} ms (projector build {:.1} ms, reuse {:.1} ms), \
-             point rule {:.1} ms; max |exact - point| {diff:.2e} of L00 {:.3}",
-            t_exact * 1e3,
-            t_table * 1e3,
-            t_reuse * 1e3,
-            t_point * 1e3,
-            a[0].x
-        );
     }
 }

@@ -12,7 +12,7 @@
 //! `g(d) = f(R^T d)`, i.e. `f` rotated by `R` (a lobe of `f` at `a` moves to `R a`). Each band
 //! matrix `M_l` satisfies `Y_l(R d) = M_l Y_l(d)`.
 
-use crate::sh::{order_of, sh_count, MAX_ORDER};
+use super::{order_of, sh_count, MAX_ORDER};
 use crate::{Mat3, Vec3};
 
 /// Block-diagonal SH rotation matrix (one `(2l+1) x (2l+1)` block per band).
