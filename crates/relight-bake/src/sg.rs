@@ -32,6 +32,7 @@
 
 pub mod fit;
 mod settings;
+pub use settings::MAX_LOBES;
 pub mod transport;
 
 use relight_scene::material::Material;

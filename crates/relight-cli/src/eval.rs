@@ -24,7 +24,15 @@ pub enum EvalMethod {
 }
 
 /// Arguments of `relight eval`.
+///
+/// The SG bake's options are `relight bake --method sg`'s, except that `--direct-lobes`
+/// takes a comma-separated list here (`--direct-lobes 1,2,3`): every experiment is baked and
+/// scored once per count (read with [`direct_lobes`]; the bake settings keep the first).
 #[derive(clap::Args)]
+#[command(mut_arg("direct_lobes", |a| a
+    .value_delimiter(',')
+    .action(clap::ArgAction::Append)
+    .help("Direct lobe counts to evaluate, comma-separated (e.g. 1,2,3): each experiment is baked and scored once per count")))]
 pub struct Args {
     /// Scene descriptions (JSON). Default: the method's own experiments, from --examples
     /// (hybrid: teapot_table.json; sg: sg_spot.json and sg_shadowed_highlight.json).
@@ -62,6 +70,11 @@ pub struct Args {
     /// The shared data folder (default probes of --method hybrid); default: $RELIGHT_SHARED.
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// SG: also compute the error budget of every bake (each approximation of the frame in
+    /// turn, docs/RESULTS.md §8; renders a direct-lighting reference for experiments with
+    /// interreflections).
+    #[arg(long)]
+    pub budget: bool,
     /// Hybrid options.
     #[command(flatten)]
     pub hybrid: HybridSettings,
@@ -103,6 +116,30 @@ fn print(a: &Args, out: &Out) -> Result<()> {
     Ok(())
 }
 
+/// The direct lobe counts of `--direct-lobes` (a list in `relight eval`, see [`Args`]), each
+/// checked against the bake's range.
+fn direct_lobes(m: &ArgMatches) -> Result<Vec<usize>> {
+    let lobes: Vec<usize> = m
+        .get_many::<usize>("direct_lobes")
+        .map(|v| v.copied().collect())
+        .unwrap_or_default();
+    for &l in &lobes {
+        ensure!(
+            (1..=relight_bake::sg::MAX_LOBES).contains(&l),
+            "--direct-lobes {l} is not in 1..={}",
+            relight_bake::sg::MAX_LOBES
+        );
+    }
+    let mut seen = lobes.clone();
+    seen.sort_unstable();
+    seen.dedup();
+    ensure!(
+        seen.len() == lobes.len(),
+        "--direct-lobes lists a count twice"
+    );
+    Ok(lobes)
+}
+
 /// Run `relight eval`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     use EvalMethod::*;
@@ -114,6 +151,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Hybrid], named(&["reference_spp", "data"])),
             (&[Hybrid], arg_names::<HybridSettings>()),
             (&[Sg], arg_names::<SgBakeSettings>()),
+            (&[Sg], named(&["budget"])),
             (&[Sh, Hybrid, Sg], named(&["width", "spp", "examples"])),
         ],
     )?;
@@ -172,8 +210,9 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 blend: None,
             };
             let experiments = if a.scenes.is_empty() {
-                example(&a, "sg_spot.json")?;
-                example(&a, "sg_shadowed_highlight.json")?;
+                for s in sg::DEFAULT_SCENES {
+                    example(&a, s)?;
+                }
                 sg::default_experiments(&a.examples)
             } else {
                 sg::scene_experiments(&a.scenes, &settings)
@@ -181,6 +220,8 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             sg::run(&sg::SgEval {
                 experiments,
                 settings,
+                lobes: direct_lobes(m)?,
+                budget: a.budget,
                 spp: a.spp,
                 width: a.width,
                 out: a.out.clone(),

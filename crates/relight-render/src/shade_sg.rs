@@ -66,30 +66,12 @@ use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
 mod bench;
+mod blend;
 pub use bench::{bench_sg_frame, synthetic_sphere_bake, SgFrameBench};
+pub use blend::{blend3, blend3_energy, blend3_with, match_corners, LobeBlend};
 
 /// Vertices per parallel work item of the per-vertex pass.
 const CHUNK: usize = 1024;
-
-/// Blend three lobes with weights `w` (summing to 1): axes summed and renormalised,
-/// sharpness and amplitude linear (module docs). If the axes cancel, the axis of the
-/// heaviest corner is kept.
-#[inline]
-pub fn blend3(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
-    let axis = l[0].axis * w[0] + l[1].axis * w[1] + l[2].axis * w[2];
-    let heaviest = if w[0] >= w[1] && w[0] >= w[2] {
-        0
-    } else if w[1] >= w[2] {
-        1
-    } else {
-        2
-    };
-    SgLobe {
-        axis: axis.try_normalize().unwrap_or(l[heaviest].axis),
-        sharpness: l[0].sharpness * w[0] + l[1].sharpness * w[1] + l[2].sharpness * w[2],
-        amplitude: l[0].amplitude * w[0] + l[1].amplitude * w[1] + l[2].amplitude * w[2],
-    }
-}
 
 /// `int exp(lambda (mu . w - 1)) dw = 2 pi (1 - exp(-2 lambda)) / lambda` in f32 (the same
 /// as `relight_sphere::sg::unit_integral`, which works in f64; beyond `lambda = 9`,
@@ -333,11 +315,22 @@ pub struct SgTimes {
     pub pixel_ms: f64,
 }
 
+/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ShadeOptions {
+    /// The blend of the three views and of the three corners of a triangle.
+    pub blend: LobeBlend,
+    /// Permute each corner's lobes to the reference corner's before blending (two or more
+    /// lobes per component).
+    pub match_lobes: bool,
+}
+
 /// Renders an [`SgBake`] of a mesh (module docs).
 #[derive(Clone, Debug)]
 pub struct SgRenderer<'a> {
     mesh: &'a TriMesh,
     bake: &'a SgBake,
+    options: ShadeOptions,
     views: Icosphere,
     /// Diffuse albedo of each vertex's material.
     albedo: Vec<Vec3>,
@@ -384,11 +377,30 @@ impl<'a> SgRenderer<'a> {
         SgRenderer {
             mesh,
             bake,
+            options: ShadeOptions::default(),
             views,
             albedo,
             view_tables,
             view_index,
         }
+    }
+
+    /// The renderer with interpolation `options`.
+    pub fn with_options(self, options: ShadeOptions) -> Self {
+        SgRenderer { options, ..self }
+    }
+
+    /// The interpolation options.
+    pub fn options(&self) -> ShadeOptions {
+        self.options
+    }
+
+    /// The components' lobe counts: direct, then indirect (0 without).
+    fn component_lobes(&self) -> [usize; 2] {
+        [
+            self.bake.direct.lobe_count,
+            self.bake.indirect.as_ref().map_or(0, |l| l.lobe_count),
+        ]
     }
 
     /// The view icosahedron.
@@ -414,12 +426,31 @@ impl<'a> SgRenderer<'a> {
         let [j0, j1, j2] = self.views.triangles()[t].map(|j| j as usize);
         let mut o = out.iter_mut();
         for lobes in std::iter::once(&self.bake.direct).chain(self.bake.indirect.as_ref()) {
-            let (l0, l1, l2) = (lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2));
+            let l = [lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2)];
+            let p = self.permutations([j0, j1, j2], l);
             for k in 0..lobes.lobe_count {
-                *o.next().expect("out holds lobe_count lobes") =
-                    blend3([&l0[k], &l1[k], &l2[k]], b);
+                *o.next().expect("out holds lobe_count lobes") = blend3_with(
+                    self.options.blend,
+                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
+                    b,
+                );
             }
         }
+    }
+
+    /// Per corner, the permutation of its lobes that matches the corner of lowest `id`
+    /// (identities when matching is off or there is one lobe).
+    #[inline]
+    fn permutations(&self, id: [usize; 3], l: [&[SgLobe]; 3]) -> [[u8; blend::MAX_MATCH]; 3] {
+        let identity = std::array::from_fn(|k| k as u8);
+        let mut p = [identity; 3];
+        if self.options.match_lobes && l[0].len() > 1 {
+            let r = (0..3).min_by_key(|&c| id[c]).unwrap_or(0);
+            for c in (0..3).filter(|&c| c != r) {
+                p[c] = match_corners(l[r], l[c]);
+            }
+        }
+        p
     }
 
     /// The per-vertex pass for an eye at `eye` (world) under `lighting`.
@@ -472,14 +503,23 @@ impl<'a> SgRenderer<'a> {
     #[inline]
     fn shade(&self, frame: &SgFrame, f: &Fragment, integrate: impl Fn(&SgLobe) -> Vec3) -> Vec3 {
         let n = frame.lobe_count;
-        let [a, b, c] = self.mesh.indices[f.tri as usize].map(|i| i as usize * n);
+        let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
-        for k in 0..n {
-            let l = &frame.lobes;
-            let lobe = blend3([&l[a + k], &l[b + k], &l[c + k]], f.bary);
-            if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
-                sum += integrate(&lobe);
+        let mut start = 0;
+        for count in self.component_lobes() {
+            let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);
+            let p = self.permutations(id, l);
+            for k in 0..count {
+                let lobe = blend3_with(
+                    self.options.blend,
+                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
+                    f.bary,
+                );
+                if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
+                    sum += integrate(&lobe);
+                }
             }
+            start += count;
         }
         sum
     }
@@ -507,6 +547,29 @@ impl<'a> SgRenderer<'a> {
         (img, times)
     }
 
+    /// Deferred per-pixel shading of `frame` (from [`SgRenderer::prepare`], or built by hand
+    /// with lobes per vertex in the map frame) with `integrate` for each blended lobe: the
+    /// second pass of [`SgRenderer::render`] with any integrator (the error budget swaps the
+    /// prefiltered fetch for a finer one, and the bake's lobes for exact-view fits).
+    ///
+    /// # Panics
+    /// If `frame` does not hold `lobe_count` lobes and one diffuse value per vertex.
+    pub fn render_frame(
+        &self,
+        frame: &SgFrame,
+        camera: &Camera,
+        opts: &RasterOptions,
+        integrate: impl Fn(&SgLobe) -> Vec3 + Sync,
+    ) -> Rendered {
+        let vc = self.mesh.vertex_count();
+        assert_eq!(frame.lobe_count, self.lobe_count(), "lobes per vertex");
+        assert_eq!(frame.lobes.len(), vc * frame.lobe_count, "lobes per vertex");
+        assert_eq!(frame.diffuse.len(), vc, "diffuse per vertex");
+        raster::render_deferred(self.mesh, camera, None, opts, |f| {
+            self.shade(frame, f, &integrate)
+        })
+    }
+
     /// The slow reference of [`SgRenderer::render`]: the same blended lobes, each integrated
     /// numerically against every texel of `env.map` with its exact solid angle
     /// (`relight_sphere::sg::integrate_with_env`), times `env.scale`. `O(texels)` per lobe and
@@ -520,11 +583,8 @@ impl<'a> SgRenderer<'a> {
         opts: &RasterOptions,
     ) -> Rendered {
         let frame = self.prepare(lighting, Vec3::from(camera.origin));
-        raster::render_deferred(self.mesh, camera, None, opts, |f| {
-            self.shade(&frame, f, |l| {
-                relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map)
-                    * env.scale
-            })
+        self.render_frame(&frame, camera, opts, |l| {
+            relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map) * env.scale
         })
     }
 }

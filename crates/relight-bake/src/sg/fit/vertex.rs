@@ -375,6 +375,24 @@ fn fit_view(
     (lobes, f.relative_error, iterations)
 }
 
+/// Fits one view's data (`6 n^2` texels) on its own: the greedy fit of `sg_fit::fit` with no
+/// coherence term, then the same energy handling as the flood fill. Returns the lobes and
+/// the relative L2 error. The reference the flood fill is measured against in the error
+/// budget (per-pixel and exact-view rows of docs/RESULTS.md §8).
+pub fn fit_alone(c: &ComponentFit, data: &[Vec3]) -> (Vec<SgLobe>, f64) {
+    let t = group(&c.tables, data);
+    if t.norm2 <= 0.0 {
+        return (vec![c.default_lobe(); c.lobes], 0.0);
+    }
+    let f = sg_fit::fit(&t.target, c.lobes, &c.opts, None);
+    let mut lobes = f.lobes;
+    preserve_energy(&mut lobes, &t, c.opts.lambda_max);
+    if c.settings.energy {
+        conserve_energy(&mut lobes, &t);
+    }
+    (lobes, f.relative_error)
+}
+
 /// Rescale the amplitudes, per channel, so that the mixture's integral over the sphere equals
 /// the data's, `sum_k a_k int G_k = sum_w T(w) dA(w)` (our addition to the paper, on by
 /// default, [`SgFitSettings::energy`]): a least-squares Gaussian misses the long tails of a
