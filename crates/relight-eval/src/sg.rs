@@ -316,7 +316,7 @@ fn run_one(
                 spp: e.spp,
                 direct_reference: (depth == 2).then_some(&r.mean),
                 mask: &mask,
-                frame_4x4: (settings.bake.indirect_lobes == 0).then_some(&img),
+                shade: Default::default(),
             })?);
         }
     }

@@ -145,6 +145,49 @@ pub fn prefilter_parallel(cube: &EnvMap, levels: &[PrefilterLevel]) -> Prefilter
     PrefilteredEnv::from_levels(levels.to_vec(), data)
 }
 
+/// The shape of the prefiltered chain of an SG frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainOptions {
+    /// Face size of the finest level (a power of two; capped at the source's).
+    pub face_size: usize,
+    /// Levels per octave of `sigma` (1: [`default_levels`]).
+    pub levels_per_octave: usize,
+    /// Texels per `sigma` at a face centre (a face is 2 units wide in its tangent plane, so
+    /// texel pitch `2 / n`): level `k` has face size `texels_per_sigma * 2 / sigma_k`
+    /// rounded up to a power of two, within `1..=face_size` (1: [`default_levels`]).
+    pub texels_per_sigma: f32,
+}
+
+impl Default for ChainOptions {
+    /// [`default_levels`] of a 128-texel finest level: one level per octave, `n_k = 2 / sigma_k`.
+    fn default() -> Self {
+        ChainOptions {
+            face_size: 128,
+            levels_per_octave: 1,
+            texels_per_sigma: 1.0,
+        }
+    }
+}
+
+/// The levels of a chain of base face size `n` (the sharpest level has `sigma = 2 / n`, as
+/// [`default_levels`]) down to `sigma = 2` radians, `per_octave` levels per octave of
+/// `sigma`, each level's face size `texels_per_sigma * 2 / sigma` rounded up to a power of
+/// two and capped at `n`. `(1, 1.0)` is [`default_levels`].
+pub fn chain_levels(n: usize, per_octave: usize, texels_per_sigma: f32) -> Vec<PrefilterLevel> {
+    let per_octave = per_octave.max(1);
+    let octaves = n.trailing_zeros() as usize;
+    (0..=octaves * per_octave)
+        .map(|j| {
+            let sigma = 2.0 / n as f32 * 2f32.powf(j as f32 / per_octave as f32);
+            let want = (texels_per_sigma * 2.0 / sigma).ceil().max(1.0) as usize;
+            PrefilterLevel {
+                lambda: 1.0 / (sigma * sigma),
+                size: want.next_power_of_two().min(n),
+            }
+        })
+        .collect()
+}
+
 /// The lighting of an SG frame: the environment's Gaussian-prefiltered chain (map frame,
 /// built once per map), its SH for the diffuse part, and the runtime rotation and scale.
 #[derive(Clone, Debug)]
@@ -174,11 +217,32 @@ impl SgLighting {
     /// # Panics
     /// If `face_size` is not a power of two or `sh_order` is outside `1..=sh::MAX_ORDER`.
     pub fn new(env: &Environment, sh_order: usize, face_size: usize) -> SgLighting {
+        SgLighting::with_chain(
+            env,
+            sh_order,
+            &ChainOptions {
+                face_size,
+                ..ChainOptions::default()
+            },
+        )
+    }
+
+    /// [`SgLighting::new`] with the chain of `chain` ([`chain_levels`]).
+    ///
+    /// # Panics
+    /// If the face size is not a power of two or `sh_order` is outside `1..=sh::MAX_ORDER`.
+    pub fn with_chain(env: &Environment, sh_order: usize, chain: &ChainOptions) -> SgLighting {
+        let face_size = chain.face_size;
         assert!(face_size.is_power_of_two(), "face size {face_size}");
         let src = source_face_size(&env.map);
         let cube = to_cube(&env.map, src);
         let n = face_size.min(src);
-        let levels = default_levels(n, n.trailing_zeros() as usize + 1);
+        let levels = chain_levels(n, chain.levels_per_octave, chain.texels_per_sigma);
+        debug_assert!(
+            chain.levels_per_octave != 1
+                || chain.texels_per_sigma != 1.0
+                || levels == default_levels(n, n.trailing_zeros() as usize + 1)
+        );
         let pre = prefilter_parallel(&cube, &levels);
         let map_sh = sh::project_env(&env.map, sh_order);
         SgLighting::from_parts(pre, map_sh, sh_order, env)
@@ -315,14 +379,34 @@ pub struct SgTimes {
     pub pixel_ms: f64,
 }
 
-/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]). The default (issue
+/// 10, chosen by the figures of docs/RESULTS.md §8) blends energies and matches lobes;
+/// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadeOptions {
     /// The blend of the three views and of the three corners of a triangle.
     pub blend: LobeBlend,
     /// Permute each corner's lobes to the reference corner's before blending (two or more
     /// lobes per component).
     pub match_lobes: bool,
+}
+
+impl ShadeOptions {
+    /// The thesis' interpolation (section 2.3): linear parameters, slot `k` with slot `k`.
+    pub const PAPER: ShadeOptions = ShadeOptions {
+        blend: LobeBlend::Linear,
+        match_lobes: false,
+    };
+}
+
+impl Default for ShadeOptions {
+    /// Energy blend and lobe matching (type docs).
+    fn default() -> Self {
+        ShadeOptions {
+            blend: LobeBlend::Energy,
+            match_lobes: true,
+        }
+    }
 }
 
 /// Renders an [`SgBake`] of a mesh (module docs).
@@ -639,3 +723,6 @@ fn view_factor(table: &[f32; VIEW_TABLE], cos_i: f32) -> f32 {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod lobe_tests;

@@ -2,26 +2,28 @@
 //! the distance between the SG render and Mitsuba comes from, one approximation at a time.
 //!
 //! The SG frame is a chain of approximations of the direct glossy radiance
-//! `L_o(x, v) = int f(v, w) cos(w) V_x(w) L(w) dw`. Each row below adds one link, all at
-//! one sample per pixel centre, and is scored against the same direct-lighting Mitsuba
-//! reference over the same pixels:
+//! `L_o(x, v) = int f(v, w) cos(w) V_x(w) L(w) dw`. Each row below adds one link and is
+//! rendered with the frame's 4 x 4 samples per pixel (box filtered, as Mitsuba's pixels),
+//! scored against the same direct-lighting Mitsuba reference over the same pixels:
 //!
-//! | row | the glossy radiance of a pixel is | adds |
+//! | row | the glossy radiance of a sample is | adds |
 //! |---|---|---|
-//! | `tabulated` | `sum_w T(w) Lbar(w) dA(w)` with `T` the bake's direct cube map (`direct_res`) computed at the pixel's own point, normal and exact view, and `Lbar` the environment averaged over each texel | the cube map's resolution (and the reference's noise) |
+//! | `tabulated` | `sum_w T(w) Lbar(w) dA(w)` with `T` the bake's direct cube map (`direct_res`) computed at the sample's own point, normal and exact view, and `Lbar` the environment averaged over each texel | the cube map's resolution (and the reference's noise) |
 //! | `pixel fit` | the `N`-lobe fit of that cube map (`fit_alone`, no coherence terms), each lobe integrated exactly | the Gaussian representation (thesis eq. 2.3) |
-//! | `vertex fit` | exact-view fits at the **vertices**, blended per pixel (thesis sec. 2.3) | per-vertex sampling of space |
-//! | `bake` | the bake's fits at the 92 views, blended over the three nearest views per vertex, then per pixel | the view sampling and the flood fill's coherence (eq. 2.4-2.6) |
-//! | `prefiltered` | the same lobes through the frame's prefiltered chain ([`SgLighting`]) | the trilinear lookup (sec. 2.3, Fig. 3-2) |
-//! | `frame, 4x4` | the frame as the evaluation renders it, 4 x 4 samples per pixel | supersampling (how the reference integrates pixels) |
+//! | `vertex fit` | fits of the cube maps of the **vertices** at their exact views, blended per sample (thesis sec. 2.3) | per-vertex sampling of space |
+//! | `view fits` | independent fits of the three nearest of the 92 views at each vertex, blended as the frame blends views | the view sampling (thesis sec. 2.1.1) |
+//! | `bake` | the bake's fits (flood fill, eq. 2.2-2.6), blended as the frame does | the flood fill: coherence terms, warm starts, lobe order |
+//! | `prefiltered` | the same lobes through the frame's prefiltered chain ([`SgLighting`]): the frame itself | the trilinear lookup (sec. 2.3, Fig. 3-2) |
 //!
+//! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
+//! fit` on.
 //! "Integrated exactly" uses a dense chain ([`dense_lighting`]: 4 levels per octave of
 //! `sigma`, two texels per `sigma`), which agrees with brute-force integration against every
 //! texel of the map to well under 1 % (test `dense_chain_matches_brute_force`). The diffuse
 //! part (view-independent SH) is the frame's in every row. For an experiment with an
 //! indirect component the reference of the rows is Mitsuba at `max_depth = 2` (rendered
 //! next to the main one), and the indirect component's share is the main row's error
-//! against the `frame, 4x4` row's.
+//! against the `prefiltered` row's.
 
 use crate::reference::Job;
 use crate::Result;
@@ -34,7 +36,8 @@ use relight_method::sg::SgBaked;
 use relight_render::compare;
 use relight_render::raster::{self, RasterOptions};
 use relight_render::shade_sg::{
-    prefilter_parallel, source_face_size, to_cube, SgFrame, SgLighting, SgRenderer,
+    blend3_with, match_corners, prefilter_parallel, source_face_size, to_cube, SgFrame, SgLighting,
+    SgRenderer, ShadeOptions,
 };
 use relight_render::Image;
 use relight_scene::camera::Camera;
@@ -144,9 +147,8 @@ pub struct BudgetInput<'a> {
     pub direct_reference: Option<&'a Image>,
     /// The compared pixels.
     pub mask: &'a [bool],
-    /// The evaluation's 4 x 4 frame of the direct component alone, if the bake has no
-    /// indirect component (else it is rendered here).
-    pub frame_4x4: Option<&'a Image>,
+    /// How the frame interpolates lobes.
+    pub shade: ShadeOptions,
 }
 
 /// The budget rows of one bake (module docs), writing each row's image as
@@ -176,26 +178,29 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
         ..bake.clone()
     };
     let mesh = &scene.mesh;
-    let renderer = SgRenderer::new(mesh, &direct_only);
+    let renderer = SgRenderer::new(mesh, &direct_only).with_options(b.shade);
     let env = &scene.env;
     let eye = Vec3::from(scene.camera.origin);
-    let one = RasterOptions { supersample: 1 };
+    let opts = RasterOptions {
+        supersample: SUPERSAMPLE,
+    };
     let order = bake.diffuse.order;
     eprintln!("eval sg budget: {}: {n} lobes", b.experiment);
     let dense = dense_lighting(env, order);
     let frame_lighting = SgLighting::new(env, order, 128);
     let prepared = renderer.prepare(&dense, eye);
 
-    // Per-pixel rows: the cube map at each pixel centre, integrated and fitted.
+    // Per-sample rows: the cube map at each sample, integrated and fitted.
     let caster = relight_scene::accel::build_default(mesh);
     let settings = &b.baked.settings.bake;
     let ctx = TransportContext::new(mesh, bake.materials.clone(), caster.as_ref(), settings)
         .map_err(relight_method::MethodError::from)?;
     let res = settings.direct_res;
-    let fit = ComponentFit::new(res, n, &settings.fit, &Icosphere::new(VIEW_FREQUENCY));
+    let views = Icosphere::new(VIEW_FREQUENCY);
+    let fit = ComponentFit::new(res, n, &settings.fit, &views);
     let lbar = texel_means(env, res);
     let (_, solid) = ctx.direct_texels();
-    let (tabulated, pixel_fit) = per_pixel(scene, &prepared, |p, nrm, ng, x, out| {
+    let (tabulated, pixel_fit) = per_sample(scene, &prepared, |p, nrm, ng, x, out| {
         let view = (eye - p).normalize_or(nrm);
         let mut t = vec![Vec3::ZERO; 6 * res * res];
         ctx.direct_at(p, nrm, ng, &bake.materials[x], view, &mut t);
@@ -210,69 +215,66 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
         out[1] = integrate_world(&dense, &lobes);
     });
 
-    // Exact-view fits at the vertices, blended per pixel.
+    // Fits at the vertices: at their exact views, and at the three nearest bake views.
     let r = dense.env_from_world;
-    let vertex_lobes: Vec<Vec<SgLobe>> = (0..mesh.vertex_count())
+    let vertex_frames: Vec<[Vec<SgLobe>; 2]> = (0..mesh.vertex_count())
         .into_par_iter()
         .map_init(Vec::new, |t, x| {
             t.resize(6 * res * res, Vec3::ZERO);
             let p = mesh.positions[x];
-            let view = (eye - p).normalize_or(mesh.normals[x]);
+            let m = &bake.materials[x];
             let g = ctx.geometric_normal(x);
-            ctx.direct_at(p, mesh.normals[x], g, &bake.materials[x], view, t);
-            let (mut lobes, _) = fit_alone(&fit, t);
-            for l in &mut lobes {
-                l.axis = r * l.axis;
-            }
-            lobes
+            let fit_view = |t: &mut Vec<Vec3>, v: Vec3| {
+                ctx.direct_at(p, mesh.normals[x], g, m, v, t);
+                fit_alone(&fit, t).0
+            };
+            let view = (eye - p).normalize_or(mesh.normals[x]);
+            let exact = fit_view(t, view);
+            let (tri, w) = views.locate(view);
+            let ids = views.triangles()[tri].map(|j| j as usize);
+            let corners = ids.map(|j| fit_view(t, views.vertices()[j]));
+            let blended = blend_corners(b.shade, ids, [&corners[0], &corners[1], &corners[2]], w);
+            [exact, blended].map(|mut l| {
+                for g in &mut l {
+                    g.axis = r * g.axis;
+                }
+                l
+            })
         })
         .collect();
-    let vertex_frame = SgFrame {
+    let frame_of = |i: usize| SgFrame {
         lobe_count: n,
-        lobes: vertex_lobes.into_iter().flatten().collect(),
+        lobes: vertex_frames.iter().flat_map(|f| f[i].clone()).collect(),
         diffuse: prepared.diffuse.clone(),
     };
     let integrate = |l: &SgLobe| dense.integrate(l);
     let vertex_fit = renderer
-        .render_frame(&vertex_frame, &scene.camera, &one, integrate)
+        .render_frame(&frame_of(0), &scene.camera, &opts, integrate)
+        .image;
+    let view_fits = renderer
+        .render_frame(&frame_of(1), &scene.camera, &opts, integrate)
         .image;
     let baked = renderer
-        .render_frame(&prepared, &scene.camera, &one, integrate)
+        .render_frame(&prepared, &scene.camera, &opts, integrate)
         .image;
     let prefiltered = renderer
-        .render(&frame_lighting, &scene.camera, None, &one)
+        .render(&frame_lighting, &scene.camera, None, &opts)
         .0
         .image;
-    let owned_4x4;
-    let frame_4x4 = match b.frame_4x4 {
-        Some(i) => i,
-        None => {
-            owned_4x4 = renderer
-                .render(
-                    &frame_lighting,
-                    &scene.camera,
-                    None,
-                    &RasterOptions { supersample: 4 },
-                )
-                .0
-                .image;
-            &owned_4x4
-        }
-    };
     let rows = [
         ("tabulated", &tabulated),
         ("pixel fit", &pixel_fit),
         ("vertex fit", &vertex_fit),
+        ("view fits", &view_fits),
         ("bake", &baked),
         ("prefiltered", &prefiltered),
-        ("frame, 4x4", frame_4x4),
     ];
     let mut out = vec![];
     for (name, img) in rows {
         let m = compare::metrics(img, reference, Some(b.mask));
         let file = b
             .dir
-            .join(format!("budget_l{n}_{}.exr", name.replace([' ', ','], "_")));
+            .join(format!("budget_l{n}_{}.exr", name.replace(' ', "_")));
         crate::output::image(
             &file,
             img,
@@ -289,18 +291,51 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     Ok(out)
 }
 
-/// Shades every pixel centre covered by the mesh with `f(point, shading normal, geometric
-/// normal, nearest vertex, out)`, which writes two glossy radiances; the frame's diffuse part
-/// (Gouraud, as the frame) is added to both. Returns the two images.
-fn per_pixel(
+/// Samples per pixel along each axis in every row (the frame's, in the evaluation).
+const SUPERSAMPLE: u32 = 4;
+
+/// Blends the lobes of three views `ids` with weights `w` as the frame does (matching to the
+/// view of lowest index when `shade.match_lobes`).
+fn blend_corners(
+    shade: ShadeOptions,
+    ids: [usize; 3],
+    l: [&[SgLobe]; 3],
+    w: [f32; 3],
+) -> Vec<SgLobe> {
+    let identity: [u8; 10] = std::array::from_fn(|k| k as u8);
+    let mut p = [identity; 3];
+    if shade.match_lobes && l[0].len() > 1 {
+        let r = (0..3).min_by_key(|&c| ids[c]).unwrap_or(0);
+        for c in (0..3).filter(|&c| c != r) {
+            p[c] = match_corners(l[r], l[c]);
+        }
+    }
+    (0..l[0].len())
+        .map(|k| blend3_with(shade.blend, [0, 1, 2].map(|c| &l[c][p[c][k] as usize]), w))
+        .collect()
+}
+
+/// Shades every sample covered by the mesh (`SUPERSAMPLE`^2 per pixel) with `f(point,
+/// shading normal, geometric normal, nearest vertex, out)`, which writes two glossy
+/// radiances; the frame's diffuse part (Gouraud, as the frame) is added to both. Returns the
+/// two images, box filtered (uncovered samples count as black, as the frame without
+/// background).
+fn per_sample(
     scene: &Scene,
     frame: &SgFrame,
     f: impl Fn(Vec3, Vec3, Vec3, usize, &mut [Vec3; 2]) + Sync,
 ) -> (Image, Image) {
     let mesh = &scene.mesh;
     let cam: &Camera = &scene.camera;
-    let g = raster::gbuffer(mesh, cam, &RasterOptions { supersample: 1 });
-    let px: Vec<[Vec3; 2]> = g
+    let ss = SUPERSAMPLE as usize;
+    let g = raster::gbuffer(
+        mesh,
+        cam,
+        &RasterOptions {
+            supersample: SUPERSAMPLE,
+        },
+    );
+    let samples: Vec<[Vec3; 2]> = g
         .fragments
         .par_iter()
         .map(|frag| {
@@ -321,10 +356,20 @@ fn per_pixel(
             [out[0] + d, out[1] + d]
         })
         .collect();
+    let (w, h) = (g.width / ss, g.height / ss);
     let img = |i: usize| Image {
-        width: g.width,
-        height: g.height,
-        pixels: px.iter().map(|p| p[i]).collect(),
+        width: w,
+        height: h,
+        pixels: (0..w * h)
+            .map(|p| {
+                let (x, y) = (p % w, p / w);
+                let mut acc = Vec3::ZERO;
+                for q in 0..ss * ss {
+                    acc += samples[(y * ss + q / ss) * g.width + x * ss + q % ss][i];
+                }
+                acc / (ss * ss) as f32
+            })
+            .collect(),
     };
     (img(0), img(1))
 }
