@@ -259,9 +259,12 @@ fn frame_sizes_are_checked_before_allocating() {
     (c.width, c.height) = (16384, 16384);
     let e = crate::check_frame_options(&o, &c).unwrap_err().to_string();
     assert!(e.contains("16384 x 16384"), "{e}");
+    // 8192^2 pixels is the image limit; 3 x 3 samples each exceed the 2^28 samples.
     (c.width, c.height) = (8192, 8192);
-    let e = crate::check_frame_options(&o, &c).unwrap_err().to_string();
+    let three = FrameOptions { supersample: 3, ..o };
+    let e = crate::check_frame_options(&three, &c).unwrap_err().to_string();
     assert!(e.contains("--supersample"), "{e}");
+    assert!(crate::check_frame_options(&o, &c).is_ok(), "2 x 2 is exactly 2^28");
     let one = FrameOptions {
         supersample: 1,
         ..o
