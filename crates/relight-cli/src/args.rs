@@ -19,7 +19,7 @@ pub fn tonemap(s: &str) -> Result<ToneMap> {
 
 /// Parse an SH window (`relight_sphere::sh::Window`'s `FromStr`).
 pub fn window(s: &str) -> Result<Window> {
-    Ok(s.parse().context("--window")?)
+    s.parse().context("--window")
 }
 
 /// Parse a ray-casting back-end name (`None`: the fastest available).
@@ -213,12 +213,15 @@ pub fn arg_names<T: clap::Args>() -> Vec<(String, String)> {
         .collect()
 }
 
+/// Named arguments: `(id, long name)`.
+pub type ArgNames = Vec<(String, String)>;
+
 /// Refuse options given on the command line that do not apply to `method`: `groups` lists,
 /// per set of methods, the arguments only they take.
 pub fn refuse_foreign<K: clap::ValueEnum + PartialEq + Copy>(
     m: &ArgMatches,
     method: K,
-    groups: &[(&[K], Vec<(String, String)>)],
+    groups: &[(&[K], ArgNames)],
 ) -> Result<()> {
     let name = |k: K| {
         k.to_possible_value()

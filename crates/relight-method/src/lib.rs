@@ -196,6 +196,9 @@ pub trait Method {
 }
 
 /// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
+// One `Baked` exists per loaded bundle (never in arrays), and its arms hold large heap data
+// either way: boxing the larger arm would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Baked {
     /// An `sh` bake.
