@@ -196,6 +196,9 @@ pub trait Method {
 }
 
 /// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
+// The arms differ by a few hundred bytes of settings and headers (their tensors are on the
+// heap) and a process holds one or two bakes: boxing would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Baked {
     /// An `sh` bake.
