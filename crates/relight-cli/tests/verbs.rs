@@ -352,8 +352,12 @@ fn bench_json_lists_every_section_with_numbers() {
         "Ray throughput",
         "SH bake",
         "SH relight",
+        "SH projection of a latlong map",
+        "Hybrid: environment decomposition",
         "Hybrid frame",
         "Gaussian-prefiltered",
+        "SG fitter",
+        "SG bake",
         "SG frame",
     ] {
         assert!(
