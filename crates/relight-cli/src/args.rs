@@ -293,14 +293,7 @@ mod tests {
         assert_eq!(orders("2-4,7").unwrap(), vec![2, 3, 4, 7]);
         assert!(orders("4-2").is_err() && orders("0").is_err() && orders("x").is_err());
         assert!(vec3("1,2", "--a").is_err() && vec3("1,2,inf", "--a").is_err());
-        let base = Camera {
-            origin: [0.0; 3],
-            target: [0.0, 0.0, -1.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 45.0,
-            width: 8,
-            height: 8,
-        };
+        let base = Camera::look_at([0.0; 3], [0.0, 0.0, -1.0], 45.0, 8, 8);
         let c = camera("0,1,2/0,0,0/30", &base).unwrap();
         assert_eq!((c.origin, c.fov_deg), ([0.0, 1.0, 2.0], 30.0));
     }

@@ -55,6 +55,18 @@ where
     Ok(M::bake(input, settings, 0..scene.mesh.vertex_count(), &ctx)?.into())
 }
 
+/// The highest of the SH orders to evaluate (one bake at it serves every order).
+///
+/// # Errors
+/// [`EvalError::Options`] for an empty list.
+pub fn max_order(orders: &[usize]) -> Result<usize> {
+    orders
+        .iter()
+        .copied()
+        .max()
+        .ok_or_else(|| EvalError::Options("no SH order to evaluate".into()))
+}
+
 /// The shadowed SH settings every diffuse experiment bakes with (seed 1): direct lighting
 /// with visibility, what Mitsuba renders at `max_depth = 2`.
 pub fn shadowed(order: usize, samples: u32) -> relight_bake::sh::ShBakeSettings {

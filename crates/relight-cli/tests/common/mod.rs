@@ -77,3 +77,16 @@ pub fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
         out.display()
     );
 }
+
+/// Run `relight eval` with `args` from `cwd`, writing to `out`, and return the rows of its
+/// `results.json`.
+pub fn eval_rows(cwd: &Path, out: &Path, args: &[&str]) -> Vec<serde_json::Value> {
+    let mut all = vec!["eval"];
+    all.extend_from_slice(args);
+    all.extend(["-o", out.to_str().unwrap()]);
+    let o = relight_in(cwd, &all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
+    rows.as_array().unwrap().clone()
+}

@@ -68,14 +68,8 @@ pub(super) fn sections(quick: bool) -> Vec<Section> {
     );
     let prt = vec![Vec3::splat(0.1); mesh.vertex_count()];
     let albedo = vec![Vec3::splat(0.6); mesh.vertex_count()];
-    let camera = relight_scene::camera::Camera {
-        origin: [0.0, 3.0, 5.0],
-        target: [0.0, 0.6, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_deg: 45.0,
-        width: 512,
-        height: 512,
-    };
+    let camera =
+        relight_scene::camera::Camera::look_at([0.0, 3.0, 5.0], [0.0, 0.6, 0.0], 45.0, 512, 512);
     let lights_n = |n: usize| -> Vec<HybridLight> {
         (0..n)
             .map(|i| {

@@ -13,28 +13,26 @@ use relight_sphere::envmap::EnvMap;
 use serde_json::json;
 use std::time::Instant;
 
-/// The benchmark's environment, `6 x n x n`: dim sky gradient, a sun-like spot and a few
-/// small lights (the map of `env_prefilter`'s accuracy tests, at `n = 32` there).
+/// The benchmark's environment, `6 x n x n`: a sky gradient with a sun-like disc and two
+/// small lights (`relight_sphere::decompose::sky_with_discs`; the prefilter's cost does not
+/// depend on the content).
 pub fn bench_map(n: usize) -> EnvMap {
-    let sun = Vec3::new(0.4, 0.7, -0.59).normalize();
-    let lights = [
-        Vec3::new(-0.8, 0.1, 0.59),
-        Vec3::new(0.1, -0.3, 0.95),
-        Vec3::X,
-    ];
-    EnvMap::cube_from_fn(n, |d| {
-        let mut v =
-            Vec3::new(0.1, 0.15, 0.25) * (1.2 + d.y) + Vec3::splat(0.02 * (9.0 * d.x).sin().abs());
-        if d.dot(sun) > 0.999 {
-            v += Vec3::new(50.0, 45.0, 40.0);
-        }
-        for (i, l) in lights.iter().enumerate() {
-            if d.dot(l.normalize()) > 0.995 {
-                v += Vec3::splat(3.0 + i as f32);
-            }
-        }
-        v
-    })
+    relight_sphere::decompose::sky_with_discs(
+        n,
+        &[
+            (
+                Vec3::new(0.4, 0.7, -0.59).normalize(),
+                2.5,
+                Vec3::new(50.0, 45.0, 40.0),
+            ),
+            (
+                Vec3::new(-0.8, 0.1, 0.59).normalize(),
+                5.0,
+                Vec3::splat(3.0),
+            ),
+            (Vec3::X, 5.0, Vec3::splat(5.0)),
+        ],
+    )
 }
 
 /// Seconds to prefilter `map` into `levels` on one thread ([`PrefilteredEnv::build`],

@@ -115,14 +115,7 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     }));
     let lighting = SgLighting::new(&env, bake.diffuse.order, 128);
     let renderer = SgRenderer::new(&mesh, &bake);
-    let camera = Camera {
-        origin: [0.0, 0.4, 2.9],
-        target: [0.0, 0.0, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_deg: 45.0,
-        width: 512,
-        height: 512,
-    };
+    let camera = Camera::look_at([0.0, 0.4, 2.9], [0.0, 0.0, 0.0], 45.0, 512, 512);
     let opts = RasterOptions { supersample: 1 };
     let runs = runs.max(1);
     let mut sg = vec![];

@@ -7,14 +7,7 @@ use relight_sphere::warp::Rng;
 
 /// A 16 x 16 camera looking at the unit sphere (which covers about half of the image).
 fn camera(w: u32) -> Camera {
-    Camera {
-        origin: [0.3, 0.5, 3.2],
-        target: [0.0, 0.0, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_deg: 40.0,
-        width: w,
-        height: w,
-    }
+    Camera::look_at([0.3, 0.5, 3.2], [0.0, 0.0, 0.0], 40.0, w, w)
 }
 
 /// A bake of `mesh` whose lobe `k` at vertex `x` (normal `n`) and view `v` is `f(x, n, v, k)`,
