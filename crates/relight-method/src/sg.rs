@@ -14,6 +14,7 @@ use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError}
 use glam::Vec3;
 use relight_bake::sg::{self, SgBake, SgBakeSettings};
 use relight_bundle::Bundle;
+use relight_scene::error::Invalid;
 use relight_scene::material::Material;
 use relight_scene::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -102,7 +103,11 @@ impl SgBaked {
     ///
     /// # Errors
     /// A message naming the first violation.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
+        self.validate_msg().map_err(Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let v = self.scene.mesh.vertex_count();
         let k = &self.bake;
         let views = 10 * k.view_frequency * k.view_frequency + 2;

@@ -74,7 +74,11 @@ impl Camera {
     /// Check the camera is usable: finite vectors within [`MAX_COORDINATE`], distinct origin
     /// and target, up not parallel to the view direction, fov from [`MIN_FOV_DEG`] up to (not
     /// including) 180 degrees, size in `1..=16384`. The message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let o = Vec3::from(self.origin);
         let t = Vec3::from(self.target);
         let u = Vec3::from(self.up);
