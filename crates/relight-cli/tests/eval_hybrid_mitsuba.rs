@@ -17,7 +17,7 @@ fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
     if !common::can_evaluate() {
         return;
     }
-    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let shared = relight_testdata::shared_dir().unwrap();
     let cwd = common::tmpdir("eval", "hybrid");
     let out = cwd.join("out");
     let rows = common::eval_rows(

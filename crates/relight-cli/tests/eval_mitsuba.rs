@@ -19,7 +19,7 @@ fn sh_prt_error_per_order_against_mitsuba() {
     if !common::can_evaluate() {
         return;
     }
-    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let shared = relight_testdata::shared_dir().unwrap();
     let ex = common::examples();
     // Run from an empty folder with absolute paths, as an installed binary would be: the
     // Mitsuba script is part of the binary, not read from the build tree.

@@ -33,11 +33,11 @@ pub fn stdout(o: &Output) -> String {
 /// Whether Mitsuba-backed evaluations can run here (`../shared` and Mitsuba 3 present); prints
 /// the reason for skipping otherwise.
 pub fn can_evaluate() -> bool {
-    if relight_scene::testdata::require_shared_dir("this evaluation").is_none() {
+    if relight_testdata::require_shared_dir("this evaluation").is_none() {
         return false;
     }
     if let Err(e) = relight_render::mitsuba::mitsuba_python() {
-        relight_scene::testdata::skip(&format!("Mitsuba 3 not available: {e}"));
+        relight_testdata::skip(&format!("Mitsuba 3 not available: {e}"));
         return false;
     }
     true
