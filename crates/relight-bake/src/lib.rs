@@ -1,7 +1,10 @@
 //! # relight-bake: precomputed light transport, one module per method
 //!
 //! * [`sh`]: diffuse spherical-harmonic PRT (Sloan, Kautz & Snyder 2002; thesis ch. 4.2):
-//!   per-vertex transfer vectors, unshadowed, shadowed or interreflected.
+//!   per-vertex transfer vectors, unshadowed, shadowed or interreflected; bakes of a vertex
+//!   range for sharded bakes.
+//! * [`sg`]: view-dependent glossy PRT with spherical Gaussians (Green 2005): per-vertex,
+//!   per-view transport fitted by a flood fill with coherence terms.
 //! * [`transport`]: what every baker shares: per-vertex albedo and geometric normals,
 //!   per-vertex low-discrepancy hemisphere samples, ray offsets, thread pools.
 //!
@@ -12,7 +15,7 @@
 //! use relight_bake::sh::{bake, ShBakeSettings, ShTransferKind};
 //! # fn demo(scene: &relight_scene::scene::Scene) -> Result<(), relight_bake::BakeError> {
 //! let caster = relight_scene::accel::build_default(&scene.mesh);
-//! let settings = ShBakeSettings { kind: ShTransferKind::Shadowed, ..Default::default() };
+//! let settings = ShBakeSettings { transfer: ShTransferKind::Shadowed, ..Default::default() };
 //! let transfer = bake(&scene.mesh, &scene.materials, caster.as_ref(), &settings)?;
 //! transfer.validate().expect("a fresh bake is valid");
 //! # Ok(()) }

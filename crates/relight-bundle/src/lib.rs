@@ -38,6 +38,7 @@
 //! naming.
 
 mod crc32;
+pub mod output;
 pub mod tmpfile;
 
 pub use crc32::{crc32, Crc32};

@@ -5,7 +5,6 @@ use anyhow::{bail, ensure, Context, Result};
 use clap::parser::ValueSource;
 use clap::ArgMatches;
 use relight_render::tonemap::ToneMap;
-use relight_render::ImageFormat;
 use relight_scene::accel::Backend;
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
@@ -13,42 +12,14 @@ use relight_scene::scene_file::{self, parse_layout, SceneDesc};
 use relight_sphere::sh::Window;
 use std::path::{Path, PathBuf};
 
-/// Parse a tone map: `linear[:EXPOSURE]`, `reinhard[:EXPOSURE]`, `exp[:GAMMA]` (the thesis'
-/// `1 - exp(-gamma c)`).
+/// Parse a tone map (`relight_render::tonemap::ToneMap`'s `FromStr`).
 pub fn tonemap(s: &str) -> Result<ToneMap> {
-    let (name, val) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v)));
-    let v = match val {
-        Some(v) => v
-            .parse::<f32>()
-            .ok()
-            .filter(|x| x.is_finite() && *x > 0.0)
-            .with_context(|| format!("tone map '{s}': '{v}' is not a positive number"))?,
-        None => 1.0,
-    };
-    Ok(match name {
-        "linear" => ToneMap::Linear { exposure: v },
-        "reinhard" => ToneMap::Reinhard { exposure: v },
-        "exp" | "exponential" => ToneMap::Exponential { gamma: v },
-        _ => bail!("unknown tone map '{name}' (linear, reinhard, exp)"),
-    })
+    Ok(s.parse()?)
 }
 
-/// Parse an SH window: `none`, `hann`, `lanczos`, `sloan[:LAMBDA]`.
+/// Parse an SH window (`relight_sphere::sh::Window`'s `FromStr`).
 pub fn window(s: &str) -> Result<Window> {
-    Ok(match s.split_once(':') {
-        None if s == "none" => Window::None,
-        None if s == "hann" => Window::Hann,
-        None if s == "lanczos" => Window::Lanczos,
-        None if s == "sloan" => Window::Sloan { lambda: 0.001 },
-        Some(("sloan", l)) => Window::Sloan {
-            lambda: l
-                .parse()
-                .ok()
-                .filter(|x: &f32| x.is_finite() && *x >= 0.0)
-                .with_context(|| format!("--window '{s}': lambda must be a finite number >= 0"))?,
-        },
-        _ => bail!("unknown --window '{s}' (none, hann, lanczos, sloan[:LAMBDA])"),
-    })
+    s.parse().context("--window")
 }
 
 /// Parse a ray-casting back-end name (`None`: the fastest available).
@@ -221,68 +192,17 @@ pub fn layout(s: Option<&str>) -> Result<Option<relight_sphere::envmap::EnvLayou
     .transpose()
 }
 
-/// Check output files before any work: a known extension, an existing writable folder, and
-/// not one of the inputs (writing over the scene or the environment read is refused).
-pub fn check_outputs(outs: &[&Path], exts: &[&str], inputs: &[&Path]) -> Result<()> {
-    let canon = |p: &Path| p.canonicalize().ok();
-    let inputs: Vec<PathBuf> = inputs.iter().filter_map(|p| canon(p)).collect();
-    for (i, out) in outs.iter().enumerate() {
-        let ext = out
-            .extension()
-            .map(|e| e.to_string_lossy().to_ascii_lowercase())
-            .unwrap_or_default();
-        ensure!(
-            exts.contains(&ext.as_str()),
-            "{}: unknown output extension '{ext}' (expected {})",
-            out.display(),
-            exts.join(", ")
-        );
-        let dir = match out.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        ensure!(
-            dir.is_dir(),
-            "{}: the folder {} does not exist",
-            out.display(),
-            dir.display()
-        );
-        ensure!(
-            out.file_name().is_some() && !out.is_dir(),
-            "{}: is a folder, not a file name",
-            out.display()
-        );
-        let probe = dir.join(format!(".relight-write-check-{}", std::process::id()));
-        std::fs::write(&probe, b"")
-            .with_context(|| format!("{}: cannot write in {}", out.display(), dir.display()))?;
-        let _ = std::fs::remove_file(&probe);
-        if let Some(c) = canon(out) {
-            ensure!(
-                !inputs.contains(&c),
-                "{}: is also an input; refusing to overwrite it",
-                out.display()
-            );
-        }
-        ensure!(
-            !outs[..i].contains(out),
-            "{}: given twice as an output",
-            out.display()
-        );
-    }
-    Ok(())
-}
-
 /// The image extensions relight writes.
 pub const IMAGE_EXTS: [&str; 3] = ["exr", "hdr", "png"];
 
-/// Check that every output path is an image relight writes (extension first, then
-/// [`check_outputs`]).
+/// Check image outputs before any work (`relight_bundle::output::check_outputs`).
 pub fn check_image_outputs(outs: &[PathBuf], inputs: &[&Path]) -> Result<()> {
-    for o in outs {
-        ImageFormat::require(o)?;
-    }
     let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
-    check_outputs(&outs, &IMAGE_EXTS, inputs)
+    Ok(relight_bundle::output::check_outputs(
+        &outs,
+        &IMAGE_EXTS,
+        inputs,
+    )?)
 }
 
 /// The arguments of a clap `Args` struct: (id, long name).
@@ -293,12 +213,15 @@ pub fn arg_names<T: clap::Args>() -> Vec<(String, String)> {
         .collect()
 }
 
+/// Named arguments: `(id, long name)`.
+pub type ArgNames = Vec<(String, String)>;
+
 /// Refuse options given on the command line that do not apply to `method`: `groups` lists,
 /// per set of methods, the arguments only they take.
 pub fn refuse_foreign<K: clap::ValueEnum + PartialEq + Copy>(
     m: &ArgMatches,
     method: K,
-    groups: &[(&[K], Vec<(String, String)>)],
+    groups: &[(&[K], ArgNames)],
 ) -> Result<()> {
     let name = |k: K| {
         k.to_possible_value()
@@ -367,57 +290,11 @@ mod tests {
 
     #[test]
     fn values_parse_or_are_refused() {
-        assert_eq!(
-            tonemap("exp:2").unwrap(),
-            ToneMap::Exponential { gamma: 2.0 }
-        );
-        assert_eq!(
-            tonemap("linear").unwrap(),
-            ToneMap::Linear { exposure: 1.0 }
-        );
-        assert!(tonemap("exp:-1").is_err() && tonemap("foo").is_err());
-        assert_eq!(window("sloan:0.5").unwrap(), Window::Sloan { lambda: 0.5 });
-        assert!(window("sloan:inf").is_err() && window("sloan:-1").is_err());
         assert_eq!(orders("2-4,7").unwrap(), vec![2, 3, 4, 7]);
         assert!(orders("4-2").is_err() && orders("0").is_err() && orders("x").is_err());
         assert!(vec3("1,2", "--a").is_err() && vec3("1,2,inf", "--a").is_err());
-        let base = Camera {
-            origin: [0.0; 3],
-            target: [0.0, 0.0, -1.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 45.0,
-            width: 8,
-            height: 8,
-        };
+        let base = Camera::look_at([0.0; 3], [0.0, 0.0, -1.0], 45.0, 8, 8);
         let c = camera("0,1,2/0,0,0/30", &base).unwrap();
         assert_eq!((c.origin, c.fov_deg), ([0.0, 1.0, 2.0], 30.0));
-    }
-
-    #[test]
-    fn outputs_are_checked_before_work() {
-        let dir = std::env::temp_dir().join(format!("relight-args-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let input = dir.join("scene.json");
-        std::fs::write(&input, "{}").unwrap();
-        let ok = dir.join("a.png");
-        assert!(check_outputs(&[&ok], &IMAGE_EXTS, &[&input]).is_ok());
-        for (bad, want) in [
-            (dir.join("a.txt"), "unknown output extension"),
-            (dir.join("missing/a.png"), "does not exist"),
-        ] {
-            let e = check_outputs(&[&bad], &IMAGE_EXTS, &[])
-                .unwrap_err()
-                .to_string();
-            assert!(e.contains(want), "{e}");
-        }
-        let e = check_outputs(&[&input], &["json"], &[&input])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("also an input"), "{e}");
-        let e = check_outputs(&[&ok, &ok], &IMAGE_EXTS, &[])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("twice"), "{e}");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -8,7 +8,6 @@ use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::{BakeContext, BakeInput, Baked, Method, MethodKind};
-use relight_scene::material::Material;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -76,26 +75,13 @@ pub struct BlendArgs {
 impl BlendArgs {
     /// The blend, if `--blend-to` was given.
     fn blend(&self) -> Result<Option<MaterialBlend>> {
-        let Some(s) = &self.blend_to else {
+        let Some(to) = &self.blend_to else {
             return Ok(None);
         };
-        let (text, origin) = if s.trim_start().starts_with('{') {
-            (s.clone(), "--blend-to".to_string())
-        } else {
-            let text = std::fs::read_to_string(s).with_context(|| {
-                format!("--blend-to {s}: not inline JSON, and cannot read it as a file")
-            })?;
-            (text, s.clone())
-        };
-        let to: Material = serde_json::from_str(&text)
-            .with_context(|| format!("{origin}: not a valid material"))?;
-        to.validate()
-            .map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
         let axis = args::vec3(&self.blend_axis, "--blend-axis")?;
-        Ok(Some(MaterialBlend {
-            to,
-            axis: axis.into(),
-        }))
+        Ok(Some(
+            MaterialBlend::parse(to, axis.into()).context("--blend-to")?,
+        ))
     }
 }
 
@@ -133,7 +119,7 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
 /// Run `relight bake`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     check_options(&a, m)?;
-    args::check_outputs(&[&a.out], &["relight"], &[&a.scene])?;
+    relight_bundle::output::check_outputs(&[&a.out], &["relight"], &[&a.scene])?;
     let ctx = BakeContext {
         backend: args::backend(a.backend.as_deref())?,
         f16: a.f16,

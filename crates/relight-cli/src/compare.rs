@@ -29,7 +29,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         };
         a.a.with_file_name(format!("{}-vs-{}.err.png", stem(&a.a), stem(&a.b)))
     });
-    crate::args::check_outputs(&[&heat_path], &["png"], &[&a.a, &a.b])?;
+    relight_bundle::output::check_outputs(&[&heat_path], &["png"], &[&a.a, &a.b])?;
     let ia = read_image(&a.a)?;
     let ib = read_image(&a.b)?;
     ensure!(

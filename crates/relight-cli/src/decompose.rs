@@ -47,7 +47,7 @@ pub struct Args {
 pub fn run(a: Args, out: &Out) -> Result<()> {
     let settings = a.lights.decompose_settings(a.sh_order, !a.thesis)?;
     if let Some(o) = &a.out {
-        args::check_outputs(&[o], &["png"], &[&a.env])?;
+        relight_bundle::output::check_outputs(&[o], &["png"], &[&a.env])?;
         ensure!(
             (16..=8192).contains(&a.panel_width),
             "--panel-width {} is not in 16..=8192",

@@ -95,13 +95,14 @@ struct BenchArgs {
     /// procedural sphere on a plane).
     #[arg(long)]
     bake_mesh: Option<PathBuf>,
-    /// The shared data folder (default: $RELIGHT_SHARED).
+    /// The shared data folder (default: $RELIGHT_SHARED): dragon.obj, bunny_watertight.obj
+    /// and armadillo.obj (the SG bake section) are taken from its data/meshes.
     #[arg(long)]
     data: Option<PathBuf>,
     /// Vertices of the relight benchmark.
     #[arg(long, default_value_t = 1_000_000)]
     relight_vertices: usize,
-    /// Fewer rays and samples (a quick smoke run).
+    /// Fewer rays, samples, vertices and repetitions (a quick smoke run).
     #[arg(long)]
     quick: bool,
 }

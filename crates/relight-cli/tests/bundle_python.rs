@@ -22,7 +22,7 @@ fn python_with_numpy() -> Option<std::path::PathBuf> {
 #[test]
 fn python_reader_in_docs_reads_a_baked_bundle() {
     let Some(py) = python_with_numpy() else {
-        relight_scene::testdata::skip("no Python with numpy (run scripts/setup.sh)");
+        relight_testdata::skip("no Python with numpy (run scripts/setup.sh)");
         return;
     };
     let doc = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/BUNDLE.md"))

@@ -17,13 +17,13 @@ fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
     if !common::can_evaluate() {
         return;
     }
-    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let shared = relight_testdata::shared_dir().unwrap();
     let cwd = common::tmpdir("eval", "hybrid");
     let out = cwd.join("out");
-    let o = common::relight_in(
+    let rows = common::eval_rows(
         &cwd,
+        &out,
         &[
-            "eval",
             "--method",
             "hybrid",
             "--examples",
@@ -38,14 +38,8 @@ fn hybrid_is_never_worse_than_sh_only_against_mitsuba() {
             "128",
             "--shadow-map-size",
             "1024",
-            "-o",
-            out.to_str().unwrap(),
         ],
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rows: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
-    let rows = rows.as_array().unwrap();
     assert_eq!(rows.len(), 5, "five probes");
     assert!(out.join("report.html").is_file());
     let mut with_lights = 0;

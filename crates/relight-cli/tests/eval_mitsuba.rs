@@ -19,7 +19,7 @@ fn sh_prt_error_per_order_against_mitsuba() {
     if !common::can_evaluate() {
         return;
     }
-    let shared = relight_scene::testdata::shared_dir().unwrap();
+    let shared = relight_testdata::shared_dir().unwrap();
     let ex = common::examples();
     // Run from an empty folder with absolute paths, as an installed binary would be: the
     // Mitsuba script is part of the binary, not read from the build tree.
@@ -27,10 +27,10 @@ fn sh_prt_error_per_order_against_mitsuba() {
     let out = cwd.join("out");
     let run = |scene: &str, env: &str| {
         let env = shared.join(env);
-        let o = common::relight_in(
+        let rows = common::eval_rows(
             &cwd,
+            &out,
             &[
-                "eval",
                 ex.join(scene).to_str().unwrap(),
                 "--env",
                 env.to_str().unwrap(),
@@ -42,14 +42,8 @@ fn sh_prt_error_per_order_against_mitsuba() {
                 "64",
                 "--width",
                 "96",
-                "-o",
-                out.to_str().unwrap(),
             ],
         );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let rows: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
-        let rows = rows.as_array().unwrap();
         let rel: Vec<f64> = rows
             .iter()
             .map(|r| r["rel_rmse"].as_f64().unwrap())

@@ -26,10 +26,10 @@ fn sg_renders_match_mitsuba_and_beat_environment_mapping_in_shadow() {
     }
     let cwd = common::tmpdir("eval", "sg");
     let out = cwd.join("out");
-    let o = common::relight_in(
+    let rows = common::eval_rows(
         &cwd,
+        &out,
         &[
-            "eval",
             "--method",
             "sg",
             "--examples",
@@ -40,14 +40,8 @@ fn sg_renders_match_mitsuba_and_beat_environment_mapping_in_shadow() {
             "96",
             "--indirect-paths",
             "16",
-            "-o",
-            out.to_str().unwrap(),
         ],
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rows: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
-    let rows = rows.as_array().unwrap();
     assert_eq!(rows.len(), 3, "three experiments");
     for r in rows {
         let name = r["experiment"].as_str().unwrap();

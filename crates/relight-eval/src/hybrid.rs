@@ -24,7 +24,7 @@ mod report;
 
 use crate::reference::{coverage_mask, mitsuba_python, stem, with_width, Job};
 use crate::sh::with_env_file;
-use crate::{output, EvalError, Result};
+use crate::{output, Result};
 use relight_method::hybrid::{HybridFrame, HybridSettings};
 use relight_method::sh::{Sh, ShFrameSettings};
 use relight_method::{Baked, Frame, FrameOptions, FrameSettings};
@@ -122,12 +122,7 @@ fn triple(m: &[Metrics], f: impl Fn(&Metrics) -> f64) -> [f64; 3] {
 /// # Errors
 /// Missing Mitsuba, unreadable inputs, bake, render or write failures.
 pub fn run(e: &HybridEval) -> Result<Vec<HybridRow>> {
-    let max_order = e
-        .orders
-        .iter()
-        .copied()
-        .max()
-        .ok_or_else(|| EvalError::Options("no SH order to evaluate".into()))?;
+    let max_order = crate::max_order(&e.orders)?;
     let python = mitsuba_python()?;
     output::create_dir(&e.out)?;
     let base = with_width(SceneDesc::read(&e.scene)?, e.width);

@@ -2,15 +2,15 @@
 //!
 //! Experiments are libraries so that the CLI only parses their options and prints their
 //! tables:
-//! * [`reference`]: Mitsuba 3 references (two seeds, their noise), cached across runs, and
-//!   the coverage mask of the pixels compared;
+//! * [`reference`](mod@reference): Mitsuba 3 references (two seeds, their noise), cached
+//!   across runs, and the coverage mask of the pixels compared;
 //! * [`output`]: images with error maps, markdown/JSON tables, HTML;
 //! * [`sh`]: SH PRT error per SH order (`relight eval --method sh`);
 //! * [`hybrid`]: the hybrid thesis' Table 5.1 (`--method hybrid`);
 //! * [`sg`]: Green 2005 Fig. 3-4 and 3-5 (`--method sg`);
 //! * [`sg_basis`]: Green 2005 Fig. 3-3, SG vs Haar vs SH (`--method sg-basis`);
 //! * [`demo`]: the built-in demo, every method against the path tracer (`relight demo`);
-//! * [`bench`]: the benchmarks, each against a baseline measured in the same run.
+//! * [`bench`](mod@bench): the benchmarks, each against a baseline measured in the same run.
 
 pub mod bench;
 pub mod demo;
@@ -53,6 +53,18 @@ where
         ..Default::default()
     };
     Ok(M::bake(input, settings, 0..scene.mesh.vertex_count(), &ctx)?.into())
+}
+
+/// The highest of the SH orders to evaluate (one bake at it serves every order).
+///
+/// # Errors
+/// [`EvalError::Options`] for an empty list.
+pub fn max_order(orders: &[usize]) -> Result<usize> {
+    orders
+        .iter()
+        .copied()
+        .max()
+        .ok_or_else(|| EvalError::Options("no SH order to evaluate".into()))
 }
 
 /// The shadowed SH settings every diffuse experiment bakes with (seed 1): direct lighting

@@ -106,7 +106,7 @@ impl<'a> Job<'a> {
             );
             return seeds
                 .iter()
-                .map(|&s| Ok(relight_render::read_image(&seed_path(s)).map_err(|e| failed(&e))?))
+                .map(|&s| relight_render::read_image(&seed_path(s)).map_err(|e| failed(&e)))
                 .collect();
         }
         eprintln!(

@@ -85,12 +85,7 @@ pub fn with_env_file(mut desc: SceneDesc, path: &std::path::Path) -> SceneDesc {
 /// # Errors
 /// Missing Mitsuba, unreadable scenes, bake or write failures.
 pub fn run(e: &ShEval) -> Result<Vec<EvalRow>> {
-    let max_order = e
-        .orders
-        .iter()
-        .copied()
-        .max()
-        .ok_or_else(|| EvalError::Options("no SH order to evaluate".into()))?;
+    let max_order = crate::max_order(&e.orders)?;
     if e.scenes.is_empty() {
         return Err(EvalError::Options(
             "--method sh needs at least one scene".into(),

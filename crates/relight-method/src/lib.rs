@@ -17,11 +17,11 @@
 //! frame of a method, or says which bake the method needs.
 //!
 //! # Adding a method (what `cuts` and `vmf` do)
-//! 1. The maths and the bake loop go in `relight-bake/src/<name>/` (settings struct with
+//! 1. The maths and the bake loop go in `relight-bake/src/<name>.rs` (settings struct with
 //!    `#[derive(Serialize, Deserialize)]` and `#[cfg_attr(feature = "cli", derive(clap::Args))]`,
 //!    `validate()`), the per-pixel or per-vertex shading in `relight-render/src/shade_<name>.rs`.
-//! 2. Here: `src/<name>/mod.rs` with the baked type and `impl Method`, `store.rs` with its
-//!    tensors (prefixed `<name>_`), `frame.rs` with its frame settings and `impl Frame`.
+//! 2. Here: `src/<name>.rs` with the baked type and `impl Method`, `<name>/store.rs` with its
+//!    tensors (prefixed `<name>_`), `<name>/frame.rs` with its frame settings and `impl Frame`.
 //! 3. One arm in each closed set: [`MethodKind`], [`BakeKind`], [`Baked`], [`FrameSettings`].
 //!    The compiler then lists every `match` to extend (the CLI's bake dispatch among them).
 //! 4. Its evaluation against Mitsuba in `relight-eval`, its benchmark in `relight-eval::bench`.
@@ -196,6 +196,9 @@ pub trait Method {
 }
 
 /// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
+// One `Baked` exists per loaded bundle (never in arrays), and its arms hold large heap data
+// either way: boxing the larger arm would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Baked {
     /// An `sh` bake.

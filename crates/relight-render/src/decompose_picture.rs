@@ -60,7 +60,8 @@ mod tests {
 
     #[test]
     fn the_light_is_outlined_on_the_last_panel_only() {
-        let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
+        // Low in the sky (20 degrees), away from the panels' labels in their top-left corner.
+        let sun = Vec3::new(0.3, 0.35, -0.8).normalize();
         let map = sky_with_discs(32, &[(sun, 3.0, Vec3::splat(300.0))]);
         let s = DecomposeSettings::default();
         let d = Decomposer::new(&s, map.layout(), map.width(), map.height())

@@ -282,14 +282,7 @@ mod tests {
             &aabb_box(Vec3::new(-1.0, 1.0, -1.0), Vec3::new(1.0, 1.02, 1.0), 1),
             0,
         );
-        let camera = Camera {
-            origin: [0.0, 5.0, 6.0],
-            target: [0.0, 0.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 60.0,
-            width: 64,
-            height: 64,
-        };
+        let camera = Camera::look_at([0.0, 5.0, 6.0], [0.0, 0.0, 0.0], 60.0, 64, 64);
         (m, camera)
     }
 
@@ -384,14 +377,7 @@ mod tests {
         // A sphere lit from the side: the cap straddling the terminator adds light just past
         // it, where max(0, n.l) is 0, and never changes the fully lit side.
         let mesh = uv_sphere(Vec3::ZERO, 1.0, 48, 96);
-        let camera = Camera {
-            origin: [0.0, 0.0, 4.0],
-            target: [0.0; 3],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 40.0,
-            width: 64,
-            height: 64,
-        };
+        let camera = Camera::look_at([0.0, 0.0, 4.0], [0.0; 3], 40.0, 64, 64);
         let zero = vec![Vec3::ZERO; mesh.vertex_count()];
         let albedo = vec![Vec3::ONE; mesh.vertex_count()];
         let light = HybridLight {

@@ -357,14 +357,7 @@ mod tests {
                 scale: 2.0,
                 ..Environment::new(EnvMap::constant(Vec3::ONE))
             },
-            camera: Camera {
-                origin: [0.0, 1.0, 5.0],
-                target: [0.0, 1.0, 0.0],
-                up: [0.0, 1.0, 0.0],
-                fov_deg: 40.0,
-                width: 8,
-                height: 6,
-            },
+            camera: Camera::look_at([0.0, 1.0, 5.0], [0.0, 1.0, 0.0], 40.0, 8, 6),
         };
         let dir =
             std::env::temp_dir().join(format!("relight-mitsuba-export-{}", std::process::id()));

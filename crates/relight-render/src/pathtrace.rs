@@ -294,14 +294,7 @@ mod tests {
             mesh,
             materials: vec![material],
             env: Environment::new(env),
-            camera: Camera {
-                origin: [0.0, 0.0, 4.0],
-                target: [0.0; 3],
-                up: [0.0, 1.0, 0.0],
-                fov_deg: 40.0,
-                width: 24,
-                height: 16,
-            },
+            camera: Camera::look_at([0.0, 0.0, 4.0], [0.0; 3], 40.0, 24, 16),
         }
     }
 

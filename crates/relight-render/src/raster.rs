@@ -621,14 +621,7 @@ mod tests {
     /// Camera at +5 Z looking at the origin, 90 degree fov: the plane z = 0 spans x, y in
     /// [-5, 5] across the 64 x 64 image.
     fn cam() -> Camera {
-        Camera {
-            origin: [0.0, 0.0, 5.0],
-            target: [0.0, 0.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 90.0,
-            width: 64,
-            height: 64,
-        }
+        Camera::look_at([0.0, 0.0, 5.0], [0.0, 0.0, 0.0], 90.0, 64, 64)
     }
 
     fn quad(corners: [Vec3; 4]) -> TriMesh {
@@ -883,14 +876,7 @@ mod tests {
             )
         };
         let map = EnvMap::latlong_from_fn(128, 65, f);
-        let camera = Camera {
-            origin: [3.0, 2.5, 4.0],
-            target: [0.0, 0.8, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 40.0,
-            width: 64,
-            height: 48,
-        };
+        let camera = Camera::look_at([3.0, 2.5, 4.0], [0.0, 0.8, 0.0], 40.0, 64, 48);
         let scene = relight_scene::scene::Scene {
             mesh: mesh.clone(),
             materials: mats.clone(),
@@ -972,14 +958,7 @@ mod tests {
             indices: vec![[0, 1, 2], [0, 2, 3]],
             material_ids: vec![0, 0],
         };
-        let camera = Camera {
-            origin: [0.0, 0.0, 5.0],
-            target: [0.0, 0.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 90.0,
-            width: 48,
-            height: 40,
-        };
+        let camera = Camera::look_at([0.0, 0.0, 5.0], [0.0, 0.0, 0.0], 90.0, 48, 40);
         (mesh, camera)
     }
 

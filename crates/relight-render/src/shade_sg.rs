@@ -36,7 +36,7 @@
 //!   horizon (see `relight_bake::sg`), so silhouettes stay continuous. The diffuse view
 //!   factor is evaluated at `max(n . v, 0)`.
 //!
-//! # Cost ([`bench_sg_frame`], `relight bench`)
+//! # Cost (`relight bench`, section "SG frame")
 //! 512 x 512, a 15.4K-vertex sphere covering 60 % of the image, 1 lobe, on the shared 2-core
 //! machine under a load of 4-8: 56-62 ms wall, 37-40 ms of CPU time over both threads (the
 //! SH PRT frame of the same scene: 20 ms), i.e. about 20 ms (50 fps) on two idle cores. The
@@ -65,9 +65,7 @@ use relight_sphere::sh;
 use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
-mod bench;
 mod blend;
-pub use bench::{bench_sg_frame, synthetic_sphere_bake, SgFrameBench};
 pub use blend::{blend3, blend3_energy, blend3_with, match_corners, LobeBlend};
 
 /// Vertices per parallel work item of the per-vertex pass.

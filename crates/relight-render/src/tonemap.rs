@@ -37,6 +37,44 @@ impl Default for ToneMap {
     }
 }
 
+/// A tone map that does not parse: the text and what is wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("tone map '{text}': {problem} (linear[:EXPOSURE], reinhard[:EXPOSURE], exp[:GAMMA])")]
+pub struct ToneMapParseError {
+    /// The text given.
+    pub text: String,
+    /// What is wrong with it.
+    pub problem: String,
+}
+
+impl std::str::FromStr for ToneMap {
+    type Err = ToneMapParseError;
+
+    /// `linear[:EXPOSURE]`, `reinhard[:EXPOSURE]`, `exp[:GAMMA]` (the thesis'
+    /// `1 - exp(-gamma c)`); the number is finite and positive, default 1.
+    fn from_str(s: &str) -> Result<ToneMap, ToneMapParseError> {
+        let err = |problem: String| ToneMapParseError {
+            text: s.into(),
+            problem,
+        };
+        let (name, val) = s.split_once(':').map_or((s, None), |(n, v)| (n, Some(v)));
+        let v = match val {
+            Some(v) => v
+                .parse::<f32>()
+                .ok()
+                .filter(|x| x.is_finite() && *x > 0.0)
+                .ok_or_else(|| err(format!("'{v}' is not a positive number")))?,
+            None => 1.0,
+        };
+        Ok(match name {
+            "linear" => ToneMap::Linear { exposure: v },
+            "reinhard" => ToneMap::Reinhard { exposure: v },
+            "exp" | "exponential" => ToneMap::Exponential { gamma: v },
+            _ => return Err(err(format!("unknown tone map '{name}'"))),
+        })
+    }
+}
+
 impl ToneMap {
     /// Map one linear channel value to display-linear `[0, 1]` (monotone non-decreasing in `c`).
     #[inline]
@@ -174,6 +212,22 @@ mod tests {
             let v = to_u8(srgb_oetf(i as f32 / 1000.0));
             assert!(v >= prev);
             prev = v;
+        }
+    }
+
+    #[test]
+    fn tone_maps_parse_or_say_why_not() {
+        assert_eq!(
+            "exp:2".parse::<ToneMap>().unwrap(),
+            ToneMap::Exponential { gamma: 2.0 }
+        );
+        assert_eq!(
+            "linear".parse::<ToneMap>().unwrap(),
+            ToneMap::Linear { exposure: 1.0 }
+        );
+        for bad in ["exp:-1", "exp:inf", "foo", "reinhard:x"] {
+            let e = bad.parse::<ToneMap>().unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
         }
     }
 }

@@ -143,7 +143,7 @@ fn mitsuba_render(name: &str, scene: &Scene, spp: u32, max_depth: i32) -> Option
     let python = match mitsuba_python() {
         Ok(p) => p,
         Err(e) => {
-            relight_scene::testdata::skip(&format!("Mitsuba comparison {name}: {e}"));
+            relight_testdata::skip(&format!("Mitsuba comparison {name}: {e}"));
             return None;
         }
     };
@@ -346,7 +346,7 @@ fn furnace_diffuse_sphere_is_albedo_times_radiance() {
 
 /// `OrientationLatLong.exr` from the shared data, as a latlong map (`None`: skip).
 fn orientation_env() -> Option<EnvMap> {
-    let p = relight_scene::testdata::shared_file("data/envmaps/exr/OrientationLatLong.exr")?;
+    let p = relight_testdata::shared_file("data/envmaps/exr/OrientationLatLong.exr")?;
     Some(
         relight_scene::io::env::load_env(&p, Some(EnvLayout::LatLong))
             .expect("load OrientationLatLong"),
@@ -388,7 +388,7 @@ fn orientation_map_mirror_like_conductor_matches_mitsuba() {
 
 /// The Grace Cathedral probe (256 x 128 latlong) from the shared data (`None`: skip).
 fn grace() -> Option<Environment> {
-    let p = relight_scene::testdata::shared_file("data/envmaps/debevec_latlong_256x128/grace.hdr")?;
+    let p = relight_testdata::shared_file("data/envmaps/debevec_latlong_256x128/grace.hdr")?;
     Some(Environment::new(
         relight_scene::io::env::load_env(&p, Some(EnvLayout::LatLong)).expect("load grace"),
     ))

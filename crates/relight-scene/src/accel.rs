@@ -5,7 +5,7 @@
 //! [`build_default`] picks the fastest available one (Embree's default mode, which is not
 //! watertight: a ray aimed exactly at a shared edge or vertex can slip through; use
 //! [`Backend::Bvh`] or `embree::EmbreeScene::build_robust` where that matters).
-//! [`bench::bench_occlusion`] measures them against each other on the same rays.
+//! `relight bench` (`relight-eval`) measures them against each other on the same rays.
 //!
 //! Hits report `t` along the (not necessarily unit) direction, the triangle index and
 //! Embree-convention barycentrics `(u, v)`: point = `(1-u-v) a + u b + v c`. Rays start at
@@ -86,7 +86,6 @@ pub trait RayCaster: Send + Sync {
     fn name(&self) -> &'static str;
 }
 
-pub mod bench;
 pub mod bvh;
 #[cfg(feature = "embree")]
 pub mod embree;
@@ -222,10 +221,35 @@ pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
     Vec3::new(offset(p.x, n.x), offset(p.y, n.y), offset(p.z, n.z))
 }
 
+/// A tiny deterministic generator for the ray sets and meshes of this module's tests (and
+/// `bvh/tests.rs`).
+#[cfg(test)]
+pub(crate) mod test_rng {
+    /// SplitMix64 (Steele, Lea & Flood 2014).
+    #[derive(Clone, Debug)]
+    pub(crate) struct SplitMix64(pub u64);
+
+    impl SplitMix64 {
+        /// Next 64 random bits.
+        pub(crate) fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+
+        /// Uniform in `[0, 1)`.
+        pub(crate) fn next_f32(&mut self) -> f32 {
+            (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bench::SplitMix64;
+    use test_rng::SplitMix64;
 
     #[test]
     fn offset_origin_avoids_self_intersection() {

@@ -52,10 +52,33 @@ pub struct CameraFrame {
 }
 
 impl Camera {
+    /// A camera at `origin` looking at `target` with +Y up, horizontal field of view
+    /// `fov_deg` degrees, `width x height` pixels.
+    pub fn look_at(
+        origin: [f32; 3],
+        target: [f32; 3],
+        fov_deg: f32,
+        width: u32,
+        height: u32,
+    ) -> Camera {
+        Camera {
+            origin,
+            target,
+            up: [0.0, 1.0, 0.0],
+            fov_deg,
+            width,
+            height,
+        }
+    }
+
     /// Check the camera is usable: finite vectors within [`MAX_COORDINATE`], distinct origin
     /// and target, up not parallel to the view direction, fov from [`MIN_FOV_DEG`] up to (not
     /// including) 180 degrees, size in `1..=16384`. The message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let o = Vec3::from(self.origin);
         let t = Vec3::from(self.target);
         let u = Vec3::from(self.up);
@@ -143,14 +166,7 @@ mod tests {
     use super::*;
 
     fn cam() -> Camera {
-        Camera {
-            origin: [0.3, 1.0, 4.0],
-            target: [0.0, 0.2, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_deg: 40.0,
-            width: 64,
-            height: 48,
-        }
+        Camera::look_at([0.3, 1.0, 4.0], [0.0, 0.2, 0.0], 40.0, 64, 48)
     }
 
     #[test]

@@ -42,6 +42,35 @@ impl fmt::Display for Location {
     }
 }
 
+/// A value that breaks an invariant or a documented range, returned by the `validate()`
+/// methods of descriptions and built structures ([`crate::camera::Camera::validate`],
+/// [`crate::scene_file::SceneDesc::validate`], [`crate::meshops::validate`], ...). The message
+/// names the field and the rule; callers add the file.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Invalid(pub String);
+
+impl From<String> for Invalid {
+    fn from(s: String) -> Self {
+        Invalid(s)
+    }
+}
+
+impl std::ops::Deref for Invalid {
+    type Target = str;
+
+    /// The message.
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl From<Invalid> for String {
+    fn from(e: Invalid) -> Self {
+        e.0
+    }
+}
+
 /// A failure to read or write a scene or image file.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {

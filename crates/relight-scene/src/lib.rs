@@ -11,7 +11,6 @@ pub mod mesh;
 pub mod scene;
 pub mod scene_file;
 pub mod shapes;
-pub mod testdata;
 
 pub use relight_sphere::{Mat3, Vec2, Vec3};
 pub mod error;

@@ -166,7 +166,11 @@ pub fn remove_unused_vertices(mesh: &mut TriMesh) -> usize {
 }
 
 /// Err if the mesh has no triangles or no vertices.
-pub fn check_non_empty(mesh: &TriMesh) -> Result<(), String> {
+pub fn check_non_empty(mesh: &TriMesh) -> Result<(), crate::error::Invalid> {
+    non_empty_msg(mesh).map_err(crate::error::Invalid)
+}
+
+fn non_empty_msg(mesh: &TriMesh) -> Result<(), String> {
     if mesh.indices.is_empty() || mesh.positions.is_empty() {
         return Err(format!(
             "empty mesh ({} vertices, {} non-degenerate triangles)",
@@ -180,7 +184,11 @@ pub fn check_non_empty(mesh: &TriMesh) -> Result<(), String> {
 /// Check every invariant of a [`TriMesh`]: non-empty; attribute arrays as long as
 /// `positions`; one material id per triangle; indices in range; finite positions; unit
 /// normals (within 1e-3).
-pub fn validate(mesh: &TriMesh) -> Result<(), String> {
+pub fn validate(mesh: &TriMesh) -> Result<(), crate::error::Invalid> {
+    validate_msg(mesh).map_err(crate::error::Invalid)
+}
+
+fn validate_msg(mesh: &TriMesh) -> Result<(), String> {
     check_non_empty(mesh)?;
     let n = mesh.positions.len();
     if mesh.normals.len() != n {

@@ -245,7 +245,11 @@ impl SceneDesc {
 
     /// Check every value of the description (see the module docs); the message names the
     /// field, e.g. `shapes[1] (sphere): radius -1.0 must be in (0, 1e8]`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         if self.shapes.is_empty() {
             return Err("the scene has no shapes".into());
         }
@@ -254,7 +258,7 @@ impl SceneDesc {
                 .map_err(|m| format!("{}: {m}", shape_label(i, s)))?;
         }
         self.environment.validate()?;
-        self.camera.validate()
+        self.camera.validate().map_err(String::from)
     }
 
     /// Make relative file paths relative to `dir`, and absolute when the file exists (so a
@@ -433,7 +437,11 @@ fn check_material(m: &Option<Material>) -> Result<(), String> {
 
 impl ShapeDesc {
     /// Check every value (see the module docs); the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         match self {
             ShapeDesc::Mesh {
                 fit,
@@ -524,7 +532,11 @@ impl ShapeDesc {
 
 impl EnvDesc {
     /// Check every value (see the module docs); the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let angle = |name: &str, v: Option<f32>| match v {
             Some(v) if !v.is_finite() => Err(format!("environment: {name} {v:?} must be finite")),
             _ => Ok(()),
@@ -707,7 +719,7 @@ fn table_thickness(width: f32, height: f32) -> f32 {
 /// files, rasterising the sky).
 pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
     d.validate()
-        .map_err(|msg| SceneError::InvalidParameter { msg })?;
+        .map_err(|msg| SceneError::InvalidParameter { msg: msg.0 })?;
     Ok(match d {
         EnvDesc::File {
             path,

@@ -76,7 +76,11 @@ impl Default for SkyParams {
 impl SkyParams {
     /// Check every parameter is in its documented range (NaN is in no range); the message
     /// names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::error::Invalid> {
+        self.validate_msg().map_err(crate::error::Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let p = self;
         if !(0.0..=90.0).contains(&p.sun_elevation_deg) {
             return Err(format!(
@@ -127,7 +131,7 @@ impl Sky {
     pub fn new(params: SkyParams) -> Result<Sky, SceneError> {
         params
             .validate()
-            .map_err(|msg| SceneError::InvalidParameter { msg })?;
+            .map_err(|msg| SceneError::InvalidParameter { msg: msg.0 })?;
         let p = params;
         let t = p.turbidity as f64;
         let theta_s = (90.0 - p.sun_elevation_deg as f64).to_radians();

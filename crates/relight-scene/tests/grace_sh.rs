@@ -22,9 +22,9 @@
 //! A wrong face placement or mirror changes coefficients by 0.1-1.
 
 use relight_scene::io::load_env;
-use relight_scene::testdata::shared_file;
 use relight_sphere::sh::project_env;
 use relight_sphere::Vec3;
+use relight_testdata::shared_file;
 
 /// R&H 2001, Figure 2, Grace Cathedral, index `l(l+1)+m`. L00 and L1-1 to five decimals,
 /// the others the two-decimal values printed in the paper.

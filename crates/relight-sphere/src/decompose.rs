@@ -423,37 +423,5 @@ pub fn cube_supersampled(n: usize, k: usize, f: impl Fn(Vec3) -> Vec3) -> EnvMap
     EnvMap::cube(n, texels)
 }
 
-/// Benchmark (issue 3 item 6): mean milliseconds of one [`Decomposer::run`] with the default
-/// settings on a `6 x 64 x 64` cube map (sky plus three discs), the tables built beforehand.
-pub fn bench_decompose() -> f64 {
-    let discs = [
-        (
-            Vec3::new(0.3, 0.8, 0.2).normalize(),
-            1.5,
-            Vec3::splat(400.0),
-        ),
-        (
-            Vec3::new(-0.6, 0.4, -0.5).normalize(),
-            2.0,
-            Vec3::new(80.0, 60.0, 40.0),
-        ),
-        (
-            Vec3::new(0.1, 0.3, -0.9).normalize(),
-            1.0,
-            Vec3::splat(150.0),
-        ),
-    ];
-    let map = sky_with_discs(64, &discs);
-    let dec = Decomposer::new(&DecomposeSettings::default(), map.layout(), 64, 6 * 64)
-        .expect("default settings are valid");
-    let _ = dec.run(&map);
-    let runs = 50;
-    let t0 = std::time::Instant::now();
-    for _ in 0..runs {
-        std::hint::black_box(dec.run(std::hint::black_box(&map)).ok());
-    }
-    t0.elapsed().as_secs_f64() * 1e3 / runs as f64
-}
-
 #[cfg(test)]
 mod tests;

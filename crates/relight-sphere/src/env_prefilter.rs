@@ -42,9 +42,9 @@
 //! test `matches_brute_force_convolution`): max relative error 0.64 % over every texel of 6
 //! levels of a 6x32x32 map with a 50x sun and small lights on a dim sky (the error comes from
 //! the box pyramid moving the sun by part of a source texel). Time for 6x256x256 and 8 levels
-//! ([`bench_prefilter`]): 1.0-1.3 s on one thread, 0.54 s on two (the per-face jobs on two std
-//! threads, pyramid included), measured on a shared 2-core machine under a load of about 3;
-//! cmft publishes 6.0 s.
+//! (`relight bench`, section "Gaussian-prefiltered environment"): 1.0-1.3 s on one thread,
+//! 0.54 s on two (the per-face jobs on two threads, pyramid included), measured on a shared
+//! 2-core machine under a load of about 3; cmft publishes 6.0 s.
 //!
 //! The trilinear lookup between levels is the larger error: lobes half way between two levels
 //! (one octave of `sigma` apart) next to a bright source are off by about 11 % on that map
@@ -525,44 +525,33 @@ pub fn prefilter_reference(map: &EnvMap, lambda: f32, dir: Vec3) -> Vec3 {
     )
 }
 
-/// A 6x256x256 test environment: dim sky gradient, a sun-like spot and a few small lights.
-fn bench_map(n: usize) -> EnvMap {
-    let sun = Vec3::new(0.4, 0.7, -0.59).normalize();
-    let lights = [
-        Vec3::new(-0.8, 0.1, 0.59),
-        Vec3::new(0.1, -0.3, 0.95),
-        Vec3::X,
-    ];
-    EnvMap::cube_from_fn(n, |d| {
-        let mut v =
-            Vec3::new(0.1, 0.15, 0.25) * (1.2 + d.y) + Vec3::splat(0.02 * (9.0 * d.x).sin().abs());
-        if d.dot(sun) > 0.999 {
-            v += Vec3::new(50.0, 45.0, 40.0);
-        }
-        for (i, l) in lights.iter().enumerate() {
-            if d.dot(l.normalize()) > 0.995 {
-                v += Vec3::splat(3.0 + i as f32);
-            }
-        }
-        v
-    })
-}
-
-/// Seconds to prefilter a 6x256x256 cube map into the 8 default levels on one thread
-/// ([`PrefilteredEnv::build`], pyramid included).
-pub fn bench_prefilter() -> f64 {
-    let map = bench_map(256);
-    let levels = default_levels(256, 8);
-    let t0 = std::time::Instant::now();
-    let p = PrefilteredEnv::build(&map, &levels, &PrefilterOptions::default());
-    let s = t0.elapsed().as_secs_f64();
-    std::hint::black_box(p);
-    s
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 6 x n x n test environment: dim sky gradient, a sun-like spot and a few small lights
+    /// (`relight bench` prefilters the same map at n = 256).
+    fn test_map(n: usize) -> EnvMap {
+        let sun = Vec3::new(0.4, 0.7, -0.59).normalize();
+        let lights = [
+            Vec3::new(-0.8, 0.1, 0.59),
+            Vec3::new(0.1, -0.3, 0.95),
+            Vec3::X,
+        ];
+        EnvMap::cube_from_fn(n, |d| {
+            let mut v = Vec3::new(0.1, 0.15, 0.25) * (1.2 + d.y)
+                + Vec3::splat(0.02 * (9.0 * d.x).sin().abs());
+            if d.dot(sun) > 0.999 {
+                v += Vec3::new(50.0, 45.0, 40.0);
+            }
+            for (i, l) in lights.iter().enumerate() {
+                if d.dot(l.normalize()) > 0.995 {
+                    v += Vec3::splat(3.0 + i as f32);
+                }
+            }
+            v
+        })
+    }
 
     #[test]
     fn fast_exp_is_accurate() {
@@ -577,7 +566,7 @@ mod tests {
 
     #[test]
     fn vector_paths_agree() {
-        let pyr = SourcePyramid::new(&bench_map(32));
+        let pyr = SourcePyramid::new(&test_map(32));
         let m = &pyr.mips[0];
         let w = Window {
             base: 2 * 32 * 32,
@@ -610,7 +599,7 @@ mod tests {
 
     #[test]
     fn matches_brute_force_convolution() {
-        let map = bench_map(32);
+        let map = test_map(32);
         let levels = default_levels(32, 6);
         let p = PrefilteredEnv::build(&map, &levels, &PrefilterOptions::default());
         let mut worst = 0f32;
@@ -633,7 +622,7 @@ mod tests {
 
     #[test]
     fn sg_integral_between_levels() {
-        let map = bench_map(32);
+        let map = test_map(32);
         let p = PrefilteredEnv::build(&map, &default_levels(32, 6), &PrefilterOptions::default());
         // (axis, lambda, bound): linear interpolation in ln lambda between levels one octave of
         // sigma apart, plus bilinear lookup in levels with one texel per sigma. Measured: 1.4 %

@@ -397,6 +397,30 @@ pub enum Window {
     },
 }
 
+/// A window name that does not parse.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown SH window '{0}' (none, hann, lanczos, sloan[:LAMBDA] with a finite LAMBDA >= 0)")]
+pub struct WindowParseError(pub String);
+
+impl std::str::FromStr for Window {
+    type Err = WindowParseError;
+
+    /// `none`, `hann`, `lanczos`, `sloan` (lambda 0.001) or `sloan:LAMBDA`.
+    fn from_str(s: &str) -> Result<Window, WindowParseError> {
+        let lambda = |l: &str| l.parse::<f32>().ok().filter(|x| x.is_finite() && *x >= 0.0);
+        match s.split_once(':') {
+            None if s == "none" => Ok(Window::None),
+            None if s == "hann" => Ok(Window::Hann),
+            None if s == "lanczos" => Ok(Window::Lanczos),
+            None if s == "sloan" => Ok(Window::Sloan { lambda: 0.001 }),
+            Some(("sloan", l)) => lambda(l)
+                .map(|lambda| Window::Sloan { lambda })
+                .ok_or_else(|| WindowParseError(s.into())),
+            _ => Err(WindowParseError(s.into())),
+        }
+    }
+}
+
 /// Per-band weights `w_0..w_{order-1}` of `window` (`w_0 = 1`, non-increasing).
 pub fn window_weights(order: usize, window: Window) -> Vec<f32> {
     let n = order.max(1) as f64;
@@ -685,5 +709,18 @@ mod tests {
         apply_window(&mut c, 3, Window::Hann);
         assert_eq!(c[0], Vec3::ONE);
         assert!((c[4].x - 0.25).abs() < 1e-6, "{}", c[4]); // (1 + cos(2pi/3)) / 2
+    }
+
+    #[test]
+    fn windows_parse_or_are_refused() {
+        assert_eq!(
+            "sloan:0.5".parse::<Window>().unwrap(),
+            Window::Sloan { lambda: 0.5 }
+        );
+        assert_eq!("hann".parse::<Window>().unwrap(), Window::Hann);
+        for bad in ["sloan:inf", "sloan:-1", "sloan:", "box"] {
+            let e = bad.parse::<Window>().unwrap_err().to_string();
+            assert!(e.contains(bad), "{e}");
+        }
     }
 }

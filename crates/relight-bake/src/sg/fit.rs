@@ -69,10 +69,11 @@
 //! and refits only its flagged views.
 //!
 //! # Cost
-//! Measured (CPU time, one thread, `fit_timing` and `bake_timing` tests): 0.12-0.22 ms per
-//! (vertex, view) for one lobe and 0.20-0.48 ms for two on 6x32x32 Blinn-Phong (exponent
-//! 20-500) and GGX (alpha 0.05-0.5) transport with half the hemisphere masked; about 170-470
-//! of the 6144 texels remain after grouping.
+//! Measured (CPU time, one thread, by this module's former timing tests on synthetic
+//! transport): 0.12-0.22 ms per (vertex, view) for one lobe and 0.20-0.48 ms for two on
+//! 6x32x32 Blinn-Phong (exponent 20-500) and GGX (alpha 0.05-0.5) transport with half the
+//! hemisphere masked; about 170-470 of the 6144 texels remain after grouping. `relight bench`
+//! (section "SG bake") measures the fit per (vertex, view, component) on real transport.
 //!
 //! # Bad input
 //! * A view without data (fully occluded): zero amplitude, axis and width of the prior (the

@@ -33,11 +33,11 @@ pub fn stdout(o: &Output) -> String {
 /// Whether Mitsuba-backed evaluations can run here (`../shared` and Mitsuba 3 present); prints
 /// the reason for skipping otherwise.
 pub fn can_evaluate() -> bool {
-    if relight_scene::testdata::require_shared_dir("this evaluation").is_none() {
+    if relight_testdata::require_shared_dir("this evaluation").is_none() {
         return false;
     }
     if let Err(e) = relight_render::mitsuba::mitsuba_python() {
-        relight_scene::testdata::skip(&format!("Mitsuba 3 not available: {e}"));
+        relight_testdata::skip(&format!("Mitsuba 3 not available: {e}"));
         return false;
     }
     true
@@ -76,4 +76,17 @@ pub fn assert_clean_failure(o: &Output, must_name: &str, out: &Path) {
         "partial output {} left behind",
         out.display()
     );
+}
+
+/// Run `relight eval` with `args` from `cwd`, writing to `out`, and return the rows of its
+/// `results.json`.
+pub fn eval_rows(cwd: &Path, out: &Path, args: &[&str]) -> Vec<serde_json::Value> {
+    let mut all = vec!["eval"];
+    all.extend_from_slice(args);
+    all.extend(["-o", out.to_str().unwrap()]);
+    let o = relight_in(cwd, &all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
+    rows.as_array().unwrap().clone()
 }

@@ -200,7 +200,7 @@ fn corrupt_sg_bundles_are_rejected_with_a_clear_error() {
     let check = |edit: &dyn Fn(&mut Bundle), want: &str| {
         let mut b = Sg::store(&a).unwrap();
         edit(&mut b);
-        let e = from_bundle(&b, path).err().expect("rejected").to_string();
+        let e = from_bundle(&b, path).expect_err("rejected").to_string();
         assert!(e.contains("bad.relight") && e.contains(want), "{want}: {e}");
     };
     let put = |b: &mut Bundle, name: &str, at: usize, x: f32| {

@@ -7,14 +7,7 @@ use relight_sphere::warp::Rng;
 
 /// A 16 x 16 camera looking at the unit sphere (which covers about half of the image).
 fn camera(w: u32) -> Camera {
-    Camera {
-        origin: [0.3, 0.5, 3.2],
-        target: [0.0, 0.0, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_deg: 40.0,
-        width: w,
-        height: w,
-    }
+    Camera::look_at([0.3, 0.5, 3.2], [0.0, 0.0, 0.0], 40.0, w, w)
 }
 
 /// A bake of `mesh` whose lobe `k` at vertex `x` (normal `n`) and view `v` is `f(x, n, v, k)`,
@@ -426,12 +419,4 @@ fn linear_sharpness_blend_keeps_energy_between_the_corners() {
             "{b} not in [{lo}, {hi}]"
         );
     }
-}
-
-#[test]
-fn bench_reports_consistent_figures() {
-    let b = bench_sg_frame(1, 1);
-    assert!(b.ms_per_frame > 0.0 && b.sh_ms_per_frame > 0.0 && b.vertex_ms > 0.0);
-    assert!((10_000..20_000).contains(&b.vertices), "{}", b.vertices);
-    assert!(b.coverage > 0.3 && b.coverage < 1.0, "{}", b.coverage);
 }

@@ -164,7 +164,7 @@ mod tests {
     use crate::io::image::write_hdr;
     use crate::io::test_util::temp_dir;
     use crate::io::write_exr;
-    use crate::testdata::{shared_dir, shared_file};
+    use relight_testdata::shared_file;
 
     #[test]
     fn cross_dir_and_pixel_are_inverse() {
@@ -277,7 +277,9 @@ mod tests {
 
     #[test]
     fn every_shared_envmap_loads() {
-        let Some(root) = shared_dir() else { return };
+        let Some(root) = relight_testdata::require_shared_dir("the layouts test") else {
+            return;
+        };
         let mut count = 0;
         for sub in ["debevec", "debevec_latlong_256x128", "polyhaven_1k", "exr"] {
             let Ok(rd) = std::fs::read_dir(root.join("data/envmaps").join(sub)) else {

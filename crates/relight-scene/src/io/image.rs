@@ -679,13 +679,12 @@ mod tests {
         assert!(px.iter().all(|c| *c == Vec3::splat(1.0)));
     }
 
-    #[test]
-    fn exr_announcing_far_more_pixels_than_it_holds_is_refused_before_decoding() {
-        let dir = temp_dir("exrbomb");
-        let p = dir.join("bomb.exr");
+    /// A 4 x 4 EXR in a fresh folder `dir` whose dataWindow (box2i: xMin, yMin, xMax, yMax)
+    /// is patched to claim `(max + 1)^2` pixels.
+    fn exr_with_data_window(dir: &str, name: &str, max: i32) -> std::path::PathBuf {
+        let p = temp_dir(dir).join(name);
         write_exr(&p, 4, 4, &gradient(4, 4)).unwrap();
         let mut bytes = std::fs::read(&p).unwrap();
-        // dataWindow to 16000 x 16000: within the pixel cap, 9 GB to decode from ~400 bytes.
         let key = b"dataWindow\0box2i\0";
         let at = bytes
             .windows(key.len())
@@ -693,9 +692,16 @@ mod tests {
             .expect("dataWindow attribute")
             + key.len()
             + 4;
-        bytes[at + 8..at + 12].copy_from_slice(&15_999i32.to_le_bytes());
-        bytes[at + 12..at + 16].copy_from_slice(&15_999i32.to_le_bytes());
+        bytes[at + 8..at + 12].copy_from_slice(&max.to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&max.to_le_bytes());
         std::fs::write(&p, &bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn exr_announcing_far_more_pixels_than_it_holds_is_refused_before_decoding() {
+        // dataWindow to 16000 x 16000: within the pixel cap, 9 GB to decode from ~400 bytes.
+        let p = exr_with_data_window("exrbomb", "bomb.exr", 15_999);
         let e = crate::io::test_util::within_seconds(20, move || read_image(&p).unwrap_err());
         assert!(matches!(e, SceneError::TooLarge { .. }), "{e}");
         assert!(e.to_string().contains("decode"), "{e}");
@@ -731,21 +737,8 @@ mod tests {
 
     #[test]
     fn exr_absurd_data_window_is_refused() {
-        let dir = temp_dir("exrhuge");
-        let p = dir.join("huge.exr");
-        write_exr(&p, 4, 4, &gradient(4, 4)).unwrap();
-        let mut bytes = std::fs::read(&p).unwrap();
-        // Patch dataWindow (box2i: xMin, yMin, xMax, yMax) to 100000 x 100000 pixels.
-        let key = b"dataWindow\0box2i\0";
-        let at = bytes
-            .windows(key.len())
-            .position(|w| w == key)
-            .expect("dataWindow attribute")
-            + key.len()
-            + 4;
-        bytes[at + 8..at + 12].copy_from_slice(&99_999i32.to_le_bytes());
-        bytes[at + 12..at + 16].copy_from_slice(&99_999i32.to_le_bytes());
-        std::fs::write(&p, &bytes).unwrap();
+        // dataWindow to 100000 x 100000 pixels.
+        let p = exr_with_data_window("exrhuge", "huge.exr", 99_999);
         let e = read_image(&p).unwrap_err();
         assert!(e.to_string().contains("huge.exr"), "{e}");
     }

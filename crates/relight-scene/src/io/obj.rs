@@ -307,7 +307,7 @@ fn parse_mtl(
 mod tests {
     use super::*;
     use crate::io::{load_mesh, test_util::temp_dir};
-    use crate::testdata::shared_file;
+    use relight_testdata::shared_file;
 
     fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
         let p = dir.join(name);

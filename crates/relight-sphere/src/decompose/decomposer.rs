@@ -87,8 +87,8 @@ impl TexelGrid {
 }
 
 /// Precomputed tables for one settings / layout / size: decomposing a map is then a sparse
-/// convolution, one projection and a few cap sums (the per-frame work; see
-/// [`super::bench_decompose`]).
+/// convolution, one projection and a few cap sums (the per-frame work; `relight bench`
+/// times it, section "Hybrid: environment decomposition").
 #[derive(Clone, Debug)]
 pub struct Decomposer {
     s: DecomposeSettings,

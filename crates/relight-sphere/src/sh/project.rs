@@ -55,7 +55,8 @@
 //!
 //! Cost: `O(W H order)` for the Fourier sums (one pass over the texels, no SH evaluation per
 //! texel), `O(H order^2)` for the assembly, plus the table. This is several times faster than
-//! the point rule (which evaluates `order^2` harmonics per texel); see the `bench_*` test.
+//! the point rule (which evaluates `order^2` harmonics per texel); `relight bench` measures
+//! both in the same run (section "SH projection of a latlong map").
 //!
 //! # Other layouts
 //! Cube and probe maps keep the point rule: their interpolants (bilinear within a cube face,

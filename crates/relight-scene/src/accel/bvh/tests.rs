@@ -2,7 +2,7 @@
 
 use super::traverse::{sort4, sort8};
 use super::*;
-use crate::accel::bench::SplitMix64;
+use crate::accel::test_rng::SplitMix64;
 use crate::accel::{build, AccelError, Backend, Ray, RayCaster};
 
 fn mesh(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> TriMesh {

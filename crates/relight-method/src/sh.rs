@@ -15,6 +15,7 @@ use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError}
 use glam::Vec3;
 use relight_bake::sh::{bake_range, ShBakeSettings, ShTransfer};
 use relight_bundle::{Bundle, Tensor};
+use relight_scene::error::Invalid;
 use relight_sphere::sh::{sh_count, MAX_ORDER};
 use std::ops::Range;
 use std::path::Path;
@@ -44,7 +45,11 @@ impl ShBaked {
     ///
     /// # Errors
     /// A message naming the first violation.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
+        self.validate_msg().map_err(Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         self.transfer
             .validate()
             .map_err(|e| format!("transfer: {e}"))?;

@@ -14,6 +14,7 @@ use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError}
 use glam::Vec3;
 use relight_bake::sg::{self, SgBake, SgBakeSettings};
 use relight_bundle::Bundle;
+use relight_scene::error::Invalid;
 use relight_scene::material::Material;
 use relight_scene::scene::Scene;
 use serde::{Deserialize, Serialize};
@@ -32,6 +33,35 @@ pub struct MaterialBlend {
     pub to: Material,
     /// The blend axis (any length but zero).
     pub axis: Vec3,
+}
+
+impl MaterialBlend {
+    /// A blend to `to` along `axis`: `to` is a material as inline JSON (starting with `{`)
+    /// or the path of a `.json` file holding one (a regular file of at most 64 MiB).
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`] naming the file or the JSON and the problem.
+    pub fn parse(to: &str, axis: Vec3) -> Result<MaterialBlend, MethodError> {
+        let bad = |m: String| MethodError::Settings(m);
+        let (text, origin) = if to.trim_start().starts_with('{') {
+            (to.to_string(), "the blend material".to_string())
+        } else {
+            let bytes = relight_scene::io::files::read_file(
+                Path::new(to),
+                relight_scene::io::files::MAX_TEXT_BYTES,
+                "material file",
+            )
+            .map_err(|e| bad(format!("blend material: not inline JSON, and {e}")))?;
+            (String::from_utf8_lossy(&bytes).into_owned(), to.to_string())
+        };
+        let to: Material = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("{origin}: not a valid material: {e}")))?;
+        to.validate().map_err(|e| bad(format!("{origin}: {e}")))?;
+        if !(axis.is_finite() && axis != Vec3::ZERO) {
+            return Err(bad(format!("blend axis {axis} has no direction")));
+        }
+        Ok(MaterialBlend { to, axis })
+    }
 }
 
 /// The settings of an `sg` bake, as recorded in its bundle.
@@ -73,7 +103,11 @@ impl SgBaked {
     ///
     /// # Errors
     /// A message naming the first violation.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), Invalid> {
+        self.validate_msg().map_err(Invalid)
+    }
+
+    fn validate_msg(&self) -> Result<(), String> {
         let v = self.scene.mesh.vertex_count();
         let k = &self.bake;
         let views = 10 * k.view_frequency * k.view_frequency + 2;

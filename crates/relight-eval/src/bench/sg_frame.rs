@@ -1,10 +1,13 @@
-//! The SG frame benchmark of `relight bench` (a synthetic bake, so it needs no baking).
+//! The SG frame (section "SG frame"): a 512 x 512 frame of the `sg` method on a synthetic bake
+//! (so it needs no baking), against the SH PRT frame of the same mesh and camera measured in
+//! the same run.
 
-use super::{SgLighting, SgRenderer};
-use crate::raster::{self, RasterOptions};
-use crate::shade_sh;
+use super::{median, process_cpu_ms, Section};
 use glam::Vec3;
 use relight_bake::sg::SgBake;
+use relight_render::raster::{self, RasterOptions};
+use relight_render::shade_sg::{SgLighting, SgRenderer};
+use relight_render::shade_sh;
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
@@ -13,6 +16,7 @@ use relight_sphere::envmap::EnvMap;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sh;
+use serde_json::json;
 use std::time::Instant;
 
 /// Result of [`bench_sg_frame`].
@@ -28,10 +32,10 @@ pub struct SgFrameBench {
     pub ms_per_frame: f64,
     /// Median per-vertex pass of the SG frame, milliseconds.
     pub vertex_ms: f64,
-    /// Mean CPU time of an SG frame summed over all threads (user + system, from
-    /// `/proc/self/stat`; `None` where that does not exist), milliseconds: what the frame
-    /// costs whatever else runs on the machine; `cpu_ms_per_frame / threads` is the wall time
-    /// of an otherwise idle machine with perfect scaling.
+    /// Mean CPU time of an SG frame summed over all threads ([`process_cpu_ms`]; `None` where
+    /// that does not exist), milliseconds: what the frame costs whatever else runs on the
+    /// machine; `cpu_ms_per_frame / threads` is the wall time of an otherwise idle machine
+    /// with perfect scaling.
     pub cpu_ms_per_frame: Option<f64>,
     /// Mean CPU time of the SH PRT frame, all threads, milliseconds (as `cpu_ms_per_frame`).
     pub sh_cpu_ms_per_frame: Option<f64>,
@@ -111,14 +115,7 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     }));
     let lighting = SgLighting::new(&env, bake.diffuse.order, 128);
     let renderer = SgRenderer::new(&mesh, &bake);
-    let camera = Camera {
-        origin: [0.0, 0.4, 2.9],
-        target: [0.0, 0.0, 0.0],
-        up: [0.0, 1.0, 0.0],
-        fov_deg: 45.0,
-        width: 512,
-        height: 512,
-    };
+    let camera = Camera::look_at([0.0, 0.4, 2.9], [0.0, 0.0, 0.0], 45.0, 512, 512);
     let opts = RasterOptions { supersample: 1 };
     let runs = runs.max(1);
     let mut sg = vec![];
@@ -157,10 +154,6 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     let sh_cpu_ms_per_frame = sh_cpu0
         .zip(process_cpu_ms())
         .map(|(a, b)| (b - a) / runs as f64);
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
     SgFrameBench {
         vertices: mesh.vertex_count(),
         lobes,
@@ -174,14 +167,51 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     }
 }
 
-/// User + system CPU time of this process so far, all threads, milliseconds (Linux
-/// `/proc/self/stat` fields 14 and 15, in clock ticks of 10 ms: the kernel's `USER_HZ` is 100
-/// on every Linux architecture relight builds for); `None` elsewhere.
-fn process_cpu_ms() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // The command name (field 2) is in parentheses and may hold spaces: split after it.
-    let rest = &s[s.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
-    Some(ticks * 10.0)
+/// The section: 1, 2 and 3 lobes, median of 9 frames (1 lobe, median of 3 with `quick`).
+pub(super) fn section(quick: bool) -> Section {
+    let runs = if quick { 3 } else { 9 };
+    let mut sec = Section::new(
+        format!("SG frame: 512 x 512, ~15K-vertex sphere, one sample per pixel (median of {runs})"),
+        &[
+            "lobes",
+            "vertices",
+            "coverage",
+            "SG frame (ms)",
+            "of which per-vertex (ms)",
+            "SG CPU time, all threads (ms)",
+            "SH frame (ms)",
+            "SH CPU time (ms)",
+            "SG / SH",
+            "fps",
+        ],
+    );
+    for lobes in if quick { 1..=1 } else { 1..=3 } {
+        let b = bench_sg_frame(lobes, runs);
+        sec.row(vec![
+            json!(lobes),
+            json!(b.vertices),
+            json!(b.coverage),
+            json!(b.ms_per_frame),
+            json!(b.vertex_ms),
+            json!(b.cpu_ms_per_frame),
+            json!(b.sh_ms_per_frame),
+            json!(b.sh_cpu_ms_per_frame),
+            json!(b.ms_per_frame / b.sh_ms_per_frame),
+            json!(1e3 / b.ms_per_frame),
+        ]);
+    }
+    sec
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bench_reports_consistent_figures() {
+        let b = bench_sg_frame(1, 1);
+        assert!(b.ms_per_frame > 0.0 && b.sh_ms_per_frame > 0.0 && b.vertex_ms > 0.0);
+        assert!((10_000..20_000).contains(&b.vertices), "{}", b.vertices);
+        assert!(b.coverage > 0.3 && b.coverage < 1.0, "{}", b.coverage);
+    }
 }

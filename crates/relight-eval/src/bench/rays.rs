@@ -1,4 +1,4 @@
-//! Ray-casting throughput of every back-end on one shared ray set (for `relight bench`).
+//! Ray-casting throughput of every back-end on one shared ray set (section "Ray throughput").
 //!
 //! The rays are those of ambient occlusion / transfer baking: origins uniform by area on the
 //! mesh surface, offset with [`offset_ray_origin`], directions cosine-distributed about the
@@ -7,10 +7,15 @@
 //! is interleaved and best-of-[`REPEATS`] per short segment of rays (see [`bench_occlusion`]),
 //! the most robust figure on a machine shared with other jobs.
 
-use super::{build, offset_ray_origin, Backend, Hit, Ray, RayCaster};
-use crate::mesh::TriMesh;
-use crate::Vec3;
+use super::Section;
+use crate::Result;
+use glam::Vec3;
 use rayon::prelude::*;
+use relight_scene::accel::{build, offset_ray_origin, Backend, Hit, Ray, RayCaster};
+use relight_scene::mesh::TriMesh;
+use relight_sphere::warp::{square_to_cosine_hemisphere, Frame, Rng};
+use serde_json::json;
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Timed rounds (every segment, back-end and query once per round); the fastest pass counts.
@@ -34,38 +39,8 @@ pub struct BenchRow {
     pub ratio_to_embree: f64,
 }
 
-/// SplitMix64 (Steele, Lea & Flood 2014): a tiny deterministic generator for ray sets.
-#[derive(Clone, Debug)]
-pub(crate) struct SplitMix64(pub u64);
-
-impl SplitMix64 {
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub(crate) fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
-    }
-}
-
-/// Orthonormal basis `(t, b)` around unit `n` (Duff et al. 2017, "Building an orthonormal
-/// basis, revisited").
-fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let s = 1f32.copysign(n.z);
-    let a = -1.0 / (s + n.z);
-    let b = n.x * n.y * a;
-    (
-        Vec3::new(1.0 + s * n.x * n.x * a, s * b, -s * n.x),
-        Vec3::new(b, s + n.y * n.y * a, -n.y),
-    )
-}
-
-/// `count` incoherent rays leaving the surface of `mesh` (see the module docs).
+/// `count` incoherent rays leaving the surface of `mesh` (see the module docs), drawn from
+/// PCG32 stream 0 of `seed`.
 ///
 /// # Panics
 /// If the mesh has no triangle of positive area.
@@ -80,10 +55,10 @@ pub fn surface_rays(mesh: &TriMesh, count: usize, seed: u64) -> Vec<Ray> {
         cdf.push(total);
     }
     assert!(total > 0.0, "surface_rays: mesh has no area");
-    let mut rng = SplitMix64(seed);
+    let mut rng = Rng::new(seed, 0);
     (0..count)
         .map(|_| {
-            let x = rng.next_u64() as f64 / u64::MAX as f64 * total;
+            let x = rng.next_f64() * total;
             let tri = cdf.partition_point(|&c| c <= x).min(cdf.len() - 1);
             // Skip zero-area triangles the search can land on only at x == 0.
             let tri = (tri..cdf.len())
@@ -95,11 +70,8 @@ pub fn surface_rays(mesh: &TriMesh, count: usize, seed: u64) -> Vec<Ray> {
             }
             let p = mesh.point(tri, u, v);
             let n = mesh.geometric_normal(tri);
-            // Cosine-weighted direction about n (Malley's method).
-            let (r2, phi) = (rng.next_f32(), std::f32::consts::TAU * rng.next_f32());
-            let r = r2.sqrt();
-            let (t, b) = basis(n);
-            let dir = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - r2).max(0.0).sqrt())
+            let dir = Frame::from_normal(n)
+                .to_world(square_to_cosine_hemisphere(rng.next_vec2()))
                 .normalize();
             Ray::new(offset_ray_origin(p, n, dir), dir, 0.0, f32::INFINITY)
         })
@@ -116,15 +88,16 @@ fn time_pass(pool: &rayon::ThreadPool, rays: &[Ray], f: &(dyn Fn(&[Ray]) + Sync)
     t0.elapsed().as_secs_f64()
 }
 
-/// Occlusion and closest-hit throughput of every available back-end (plus Embree's robust,
-/// watertight mode, backend `"embree3-robust"`) on the same `rays` surface rays of `mesh`
-/// (seeded by `seed`) with `threads` worker threads. Ratios are against `"embree3"` (Embree's
-/// default, fast mode).
+/// Occlusion and closest-hit throughput of every available back-end (plus, with feature
+/// `embree`, Embree's robust, watertight mode, backend `"embree3-robust"`) on the same `rays`
+/// surface rays of `mesh` (seeded by `seed`) with `threads` worker threads. Ratios are against
+/// `"embree3"` (Embree's default, fast mode).
 ///
 /// The rays are cut into segments of `SEGMENT` rays; every segment is traced by every back-end
 /// and query once per round ([`REPEATS`] rounds after a warm-up round), and the time of a
 /// back-end is the sum over segments of its fastest pass, so bursts of load from other
-/// processes hit all back-ends alike and are filtered out. Back-ends that fail to build (reported on stderr) are left out.
+/// processes hit all back-ends alike and are filtered out. Back-ends that fail to build
+/// (reported on stderr) are left out.
 ///
 /// # Panics
 /// If `rays == 0`, `threads == 0`, the thread pool cannot start, or the mesh has no area.
@@ -149,7 +122,7 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
         .collect();
     // Embree's watertight mode too: the like-for-like comparison for relight's watertight BVH.
     #[cfg(feature = "embree")]
-    match super::embree::EmbreeScene::build_robust(mesh) {
+    match relight_scene::accel::embree::EmbreeScene::build_robust(mesh) {
         Ok(e) => casters.push(Box::new(e)),
         Err(e) => eprintln!("bench: embree robust skipped: {e}"),
     }
@@ -211,6 +184,44 @@ pub fn bench_occlusion(mesh: &TriMesh, rays: usize, seed: u64, threads: usize) -
     rows
 }
 
+/// The section: `rays` rays on `ray_mesh`, else `<data>/data/meshes/dragon.obj`, else a
+/// procedural 100K-triangle sphere, on `threads` threads.
+pub(super) fn section(
+    ray_mesh: &Option<PathBuf>,
+    data: &Option<PathBuf>,
+    rays: usize,
+    threads: usize,
+) -> Result<Section> {
+    let (name, mesh) = match super::shared_mesh(ray_mesh, data, "data/meshes/dragon.obj")? {
+        Some(x) => x,
+        None => {
+            eprintln!("bench: no dragon.obj (--ray-mesh or --data): using a procedural sphere");
+            (
+                "procedural sphere".into(),
+                relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 224, 224),
+            )
+        }
+    };
+    let mut sec = Section::new(
+        format!(
+            "Ray throughput: {} ({} triangles), {} incoherent rays from the surface",
+            name,
+            mesh.triangle_count(),
+            rays
+        ),
+        &["back-end", "query", "Mrays/s", "ratio to Embree"],
+    );
+    for r in bench_occlusion(&mesh, rays, 7, threads) {
+        sec.row(vec![
+            json!(r.backend),
+            json!(r.query),
+            json!(r.mrays_per_s),
+            json!(r.ratio_to_embree),
+        ]);
+    }
+    Ok(sec)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,7 +257,7 @@ mod tests {
 
     #[test]
     fn bench_runs_on_a_small_mesh() {
-        let m = crate::accel::bvh::tests::sphere(8, 16);
+        let m = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 8, 16);
         let rows = bench_occlusion(&m, 2000, 1, 2);
         let backends = Backend::available().len() + cfg!(feature = "embree") as usize;
         assert_eq!(rows.len(), 2 * backends);
