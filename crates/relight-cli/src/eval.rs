@@ -75,6 +75,10 @@ pub struct Args {
     /// interreflections).
     #[arg(long)]
     pub budget: bool,
+    /// SG: run only these of the default experiments (comma-separated names, e.g.
+    /// `fig3-4_conductor,teapot_dawn_conductor`).
+    #[arg(long, value_delimiter = ',')]
+    pub experiments: Vec<String>,
     /// Hybrid options.
     #[command(flatten)]
     pub hybrid: HybridSettings,
@@ -151,7 +155,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Hybrid], named(&["reference_spp", "data"])),
             (&[Hybrid], arg_names::<HybridSettings>()),
             (&[Sg], arg_names::<SgBakeSettings>()),
-            (&[Sg], named(&["budget"])),
+            (&[Sg], named(&["budget", "experiments"])),
             (&[Sh, Hybrid, Sg], named(&["width", "spp", "examples"])),
         ],
     )?;
@@ -163,6 +167,10 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     if let Some(w) = a.width {
         ensure!((8..=8192).contains(&w), "--width {w} is not in 8..=8192");
     }
+    ensure!(
+        a.experiments.is_empty() || a.scenes.is_empty(),
+        "--experiments selects default experiments; scene files make their own"
+    );
     let orders = |default: &str| args::orders(a.sh_orders.as_deref().unwrap_or(default));
     match a.method {
         Sh => {
@@ -213,7 +221,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 for s in sg::DEFAULT_SCENES {
                     example(&a, s)?;
                 }
-                sg::default_experiments(&a.examples)
+                sg::select_experiments(sg::default_experiments(&a.examples), &a.experiments)?
             } else {
                 sg::scene_experiments(&a.scenes, &settings)
             };

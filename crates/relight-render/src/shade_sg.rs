@@ -5,7 +5,7 @@
 //! 1. **Per vertex** ([`SgRenderer::prepare`], parallel): the view `v = normalize(eye - x)` is
 //!    located on the view icosahedron ([`Icosphere::locate`]: triangle and spherical-cone
 //!    barycentrics `b`, `sum b = 1`), and the lobes `k` of its three views are blended
-//!    ([`blend3`]). The diffuse part `rho_x k_view(n_x . v) sum_i T_x,i L_i` is the SH dot
+//!    (Conventions below). The diffuse part `rho_x k_view(n_x . v) sum_i T_x,i L_i` is the SH dot
 //!    product of the bake's mono transfer with the world-frame SH of the environment
 //!    ([`crate::shade_sh::vertex_radiance`]) times the albedo and the material's view-side
 //!    factor (`Material::diffuse_factors`).
@@ -23,14 +23,19 @@
 //!   frame (`Environment::env_from_world`), so the prefiltered chain is built once per map
 //!   and a runtime rotation only re-rotates the SH of the diffuse part. Rotating a blend is
 //!   the same as blending rotated axes (rotation is linear and keeps lengths).
-//! * Blending (views and pixels alike): axes are summed with the weights and renormalised
-//!   (the paper's "normalising mean directions"); amplitudes and sharpnesses are blended
-//!   **linearly**. Linear sharpness is deliberate: for sharp lobes the integral is
-//!   `~ 2 pi a / lambda`, and `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
-//!   `a_j / lambda_j` (weights `w_j lambda_j`), so a blended lobe never carries more energy
-//!   than its brightest corner; blending `ln lambda` overshoots by up to
-//!   `(lambda_1 + lambda_2) / (2 sqrt(lambda_1 lambda_2))` between two lobes of equal energy.
-//!   It is also what the paper's vertex program does with its interpolated `mean_var`.
+//! * Blending (views and pixels alike, [`ShadeOptions`]): by default (issue 10) lobes are
+//!   blended by **energy** ([`blend3_energy`]: the blend's integral `a int G` is the
+//!   barycentric mean of the corners', axis and sharpness weighted by each corner's energy)
+//!   after **matching** each corner's lobes to one reference corner's ([`match_corners`]:
+//!   the thesis' correspondence, section 2.2.2 and the flipping of section 3.4, enforced at
+//!   render time). [`ShadeOptions::PAPER`] is the thesis' blend (section 2.3): axes summed
+//!   and renormalised, amplitudes and sharpnesses **linear**, slot `k` with slot `k`
+//!   ([`blend3`]). Its energy `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
+//!   `a_j / lambda_j` (weights `w_j lambda_j`), dominated by the sharpest corner: a broad
+//!   lobe blended with a sharp lobe of little energy (another Gaussian in the same slot)
+//!   keeps almost none of its energy, and a sharp lobe blended with a switched-off broad one
+//!   keeps almost all of it. With two lobes whose slots swap between neighbours that lost 17 % of the
+//!   teapot-dawn conductor's light and tripled its error (docs/RESULTS.md §8).
 //! * Radiance: `L(w) = scale * map(env_from_world w)`, as `Environment::radiance`.
 //! * Back-facing vertices keep the lobes of their view: the bake clamps views below the
 //!   horizon (see `relight_bake::sg`), so silhouettes stay continuous. The diffuse view

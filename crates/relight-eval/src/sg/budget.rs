@@ -17,9 +17,10 @@
 //!
 //! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
 //! fit` on.
-//! "Integrated exactly" uses a dense chain ([`dense_lighting`]: 4 levels per octave of
+//! "Integrated exactly" uses a dense chain ([`dense_lighting`]: 8 levels per octave of
 //! `sigma`, two texels per `sigma`), which agrees with brute-force integration against every
-//! texel of the map to well under 1 % (test `dense_chain_matches_brute_force`). The diffuse
+//! texel of the map to within 2 % next to a bright window (test
+//! `dense_chain_matches_brute_force`: 1.9 % at worst, for broad lobes). The diffuse
 //! part (view-independent SH) is the frame's in every row. For an experiment with an
 //! indirect component the reference of the rows is Mitsuba at `max_depth = 2` (rendered
 //! next to the main one), and the indirect component's share is the main row's error
@@ -64,10 +65,10 @@ pub struct BudgetRow {
 }
 
 /// Levels per octave of `sigma` of the dense chain.
-const DENSE_PER_OCTAVE: usize = 4;
+const DENSE_PER_OCTAVE: usize = 8;
 
 /// A prefiltered chain fine enough to stand for exact integration: `sigma` from `1/64` to
-/// 4 radians in steps of `2^(1/4)`, each level with about 4 texels per `sigma` at a face
+/// 4 radians in steps of `2^(1/8)`, each level with about 4 texels per `sigma` at a face
 /// centre (face size `4 / sigma` rounded up to a power of two, at most the source's), built
 /// from the same cube map as the frame's chain. `sh_order` is the diffuse transfer's.
 pub fn dense_lighting(env: &Environment, sh_order: usize) -> SgLighting {
@@ -404,9 +405,11 @@ mod tests {
             let e = ((got - exact).abs() / exact).max_element();
             worst = worst.max(e);
         }
-        // Trilinear between levels a quarter octave apart is 16x closer than the frame's
-        // one-per-octave chain (off by up to 11 % next to a bright source, env_prefilter
-        // docs); 2 % bounds that plus the chain's own 0.6 % (box pyramid) with margin.
+        // The frame's one-level-per-octave chain is off by up to 11 % next to a bright source
+        // (env_prefilter docs), most of it the interpolation between levels; eighth-octave
+        // levels bring that to 1.9 % at worst here (a broad lobe, lambda 9, lit by the
+        // window's tail; quarter-octave levels gave 2.5 %). 2 % is the budget's stated
+        // accuracy for its "exact" rows, not a margin over the measurement.
         assert!(worst < 0.02, "worst relative error {worst}");
     }
 }
