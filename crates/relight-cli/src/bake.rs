@@ -201,24 +201,9 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
     ));
     let mut extra = json!({});
     if let Baked::Sg(sg) = baked {
-        let s = &sg.bake.stats;
-        out.line(format!(
-            "SG transfer: {} bytes per vertex as {}; fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
-            sg.transfer_bytes_per_vertex(),
-            if r.f16 { "f16" } else { "f32" },
-            s.mean_relative_error[0],
-            s.mean_relative_error[1],
-            s.iterations,
-            s.flips,
-            s.flips_after_relaxation
-        ));
-        extra = json!({
-            "transfer_bytes_per_vertex": sg.transfer_bytes_per_vertex(),
-            "fit_mean_relative_error": s.mean_relative_error,
-            "fit_iterations": s.iterations,
-            "flips": s.flips,
-            "flips_after_relaxation": s.flips_after_relaxation,
-        });
+        let (lines, j) = sg.describe();
+        lines.into_iter().for_each(|l| out.line(l));
+        extra = j;
     }
     out.summary(json!({
         "command": "bake",

@@ -146,12 +146,6 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
     let sub = m.subcommand().map(|(_, s)| s).expect("a subcommand");
     match cli.cmd {
         Cmd::Demo(a) => {
-            ensure!(
-                (16..=4096).contains(&a.width),
-                "--width {} is not in 16..=4096",
-                a.width
-            );
-            ensure!(a.spp >= 1, "--spp must be at least 1");
             let (sheet, report) = relight_eval::demo::run(&relight_eval::demo::DemoOptions {
                 out: a.out,
                 width: a.width,
@@ -185,13 +179,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
                 relight_vertices: a.relight_vertices,
                 quick: a.quick,
             })?;
-            out.line(format!(
-                "# relight bench ({} threads, {})",
-                r.threads, r.arch
-            ));
-            for s in &r.sections {
-                out.line(format!("\n{}", s.markdown()));
-            }
+            out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);
         }
     }

@@ -129,6 +129,17 @@ pub struct BenchReport {
     pub sections: Vec<Section>,
 }
 
+impl BenchReport {
+    /// The report as markdown: a title line, then every section's table.
+    pub fn markdown(&self) -> String {
+        let mut s = format!("# relight bench ({} threads, {})", self.threads, self.arch);
+        for t in &self.sections {
+            s += &format!("\n\n{}", t.markdown().trim_end());
+        }
+        s
+    }
+}
+
 /// The mesh at `explicit`, else `<data>/<rel>` if that file exists, with its name; `None`
 /// when neither is given.
 fn shared_mesh(
