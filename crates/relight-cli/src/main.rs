@@ -41,6 +41,8 @@ enum Cmd {
     Demo(DemoArgs),
     /// Bake a scene description (JSON) into a bundle.
     Bake(bake::Args),
+    /// Merge the part bundles of a sharded bake (`bake --shard I/N`) into one bundle.
+    Merge(bake::MergeArgs),
     /// Render a baked bundle under an environment (no re-baking).
     Render(render::Args),
     /// Render the ground truth of a scene with the reference path tracer.
@@ -160,6 +162,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
             );
         }
         Cmd::Bake(a) => bake::run(a, sub, &out)?,
+        Cmd::Merge(a) => bake::merge(a, &out)?,
         Cmd::Render(a) => render::run(a, sub, &out)?,
         Cmd::Reference(a) => reference::run(a, &out)?,
         Cmd::ExportMitsuba(a) => reference::export(a, &out)?,
