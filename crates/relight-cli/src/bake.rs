@@ -229,12 +229,14 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
     let r = baked.record();
     let v = baked.scene().mesh.vertex_count().max(1);
     let size = args::mib(path);
+    let peak = args::peak_rss_mib();
     out.line(format!(
-        "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}",
+        "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}{}",
         path.display(),
         (size * (1 << 20) as f64) as usize / v,
         r.seconds,
-        r.backend
+        r.backend,
+        peak.map_or(String::new(), |m| format!(", peak memory {m:.0} MiB"))
     ));
     let mut extra = json!({});
     if let Baked::Sg(sg) = baked {
@@ -245,6 +247,7 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
     out.summary(json!({
         "command": "bake",
         "shard": r.shard,
+        "peak_rss_mib": peak,
         "method": baked.kind().name(),
         "out": path,
         "bytes": std::fs::metadata(path).map_or(0, |m| m.len()),

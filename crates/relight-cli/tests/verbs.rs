@@ -257,6 +257,9 @@ fn json_summaries_of_every_verb() {
     ];
     let v = json(&relight(&[&bake_part[..], &["--json"]].concat()));
     assert_eq!(v["shard"]["count"], 1, "{v}");
+    // Peak memory: at least the binary and the scene, far below this machine's.
+    let peak = v["peak_rss_mib"].as_f64().unwrap();
+    assert!((1.0..4096.0).contains(&peak), "{v}");
     let m = d.join("m.relight");
     let v = json(&relight(&["merge", s(&part), "-o", s(&m), "--json"]));
     assert_eq!(v["command"].as_str(), Some("merge"));

@@ -207,3 +207,25 @@ fn part_numbers_beyond_the_limit_are_refused_on_load() {
         );
     }
 }
+
+#[test]
+fn corrupt_part_and_merged_bundles_are_detected() {
+    let s = settings(ShTransferKind::Shadowed, 1);
+    let p = parts(0.5, &s, 2);
+    let merged = merge(p.clone().into_iter().map(Ok)).unwrap();
+    let path = Path::new("c.relight");
+    for b in [&p[0].1, &p[1].1, &merged] {
+        let bytes = bytes(b);
+        // Every 97th byte (all of the header and a spread of the data): each flip is caught
+        // by the header or data CRC-32, and each truncation by the layout checks.
+        for at in (0..bytes.len()).step_by(97) {
+            let mut c = bytes.clone();
+            c[at] ^= 0x20;
+            assert!(
+                relight_bundle::Bundle::from_bytes(path, &c).is_err(),
+                "flip at {at}"
+            );
+            assert!(relight_bundle::Bundle::from_bytes(path, &bytes[..at]).is_err());
+        }
+    }
+}
