@@ -7,6 +7,8 @@
 //!    from the surface of a ~100K-triangle mesh, as a ratio to Embree 3.
 //! 2. [`sh_bake`]: SH bake time of bunny_watertight.obj (order 4, 1024 samples, shadowed + 1
 //!    bounce), and its overhead over casting the same rays with nothing else done.
+//!    [`shard`]: the same mesh's shadowed bake in N = 1, 2, 4 parts plus the merge, against
+//!    the one-process bake (and whether the merged bundle is byte-identical).
 //! 3. [`relight`]: SH relight time per frame for 1M vertices at order 5, against a
 //!    STREAM-like copy.
 //! 4. [`projection`]: exact SH projection of a latlong map against the point rule.
@@ -34,6 +36,7 @@ pub mod sg_bake;
 pub mod sg_fit;
 pub mod sg_frame;
 pub mod sh_bake;
+pub mod shard;
 
 use crate::{EvalError, Result};
 use relight_scene::mesh::TriMesh;
@@ -192,6 +195,7 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     let rays = if a.quick { a.rays.min(200_000) } else { a.rays };
     push(rays::section(&a.ray_mesh, &a.data, rays, threads)?);
     push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
+    push(shard::section(&a.bake_mesh, &a.data, a.quick)?);
     let verts = if a.quick {
         a.relight_vertices.min(200_000)
     } else {
