@@ -49,6 +49,16 @@ pub struct Args {
     /// transfer; see deploy/slurm/).
     #[arg(long, value_name = "I/N")]
     pub shard: Option<Shard>,
+    /// Checkpoint the bake every N vertices into OUT.checkpoint/ (atomic chunk bundles), so
+    /// that a killed bake can be finished with --resume (sh with unshadowed or shadowed
+    /// transfer).
+    #[arg(long, value_name = "N", conflicts_with = "shard", value_parser = clap::value_parser!(u64).range(1..))]
+    pub checkpoint_vertices: Option<u64>,
+    /// Finish an interrupted checkpointed bake: bake only the chunks missing from
+    /// OUT.checkpoint/ (same command and --checkpoint-vertices), then write the bundle an
+    /// uninterrupted bake writes, byte for byte.
+    #[arg(long, requires = "checkpoint_vertices")]
+    pub resume: bool,
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
@@ -106,13 +116,26 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
             (&[MethodKind::Sg], sg),
         ],
     )?;
-    if a.shard.is_some_and(|s| s.count > 1) {
+    if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
+        let opt = if a.shard.is_some() {
+            "--shard"
+        } else {
+            "--checkpoint-vertices"
+        };
         if a.method == MethodKind::Sg {
-            bail!("--shard: sg bakes cannot be split (the flood fill couples neighbouring vertices, Green 2005 eq. 2.6); bake them whole");
+            bail!("{opt}: sg bakes cannot be split (the flood fill couples neighbouring vertices, Green 2005 eq. 2.6); bake them whole");
         }
         if a.sh.transfer == ShTransferKind::Interreflected {
-            bail!("--shard: interreflected transfer cannot be split (each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh); bake it whole, or shard a shadowed bake");
+            bail!("{opt}: interreflected transfer cannot be split (each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh); bake it whole, or split a shadowed bake");
         }
+    }
+    let ckpt = relight_method::checkpoint::folder(&a.out);
+    if a.checkpoint_vertices.is_none() && ckpt.exists() {
+        bail!(
+            "{}: holds a checkpoint of an interrupted bake of {}: rerun the same command with --checkpoint-vertices and --resume to finish it, or delete the folder",
+            ckpt.display(),
+            a.out.display()
+        );
     }
     if given(m, "bounces") {
         match a.method {
@@ -169,7 +192,18 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 s.transfer.name(),
                 s.samples
             );
-            bake_one::<Sh>(input, &s, a.shard, &ctx)?
+            match a.checkpoint_vertices {
+                Some(n) => relight_method::checkpoint::bake_resumable::<Sh>(
+                    input,
+                    &s,
+                    &ctx,
+                    &a.out,
+                    usize::try_from(n).unwrap_or(usize::MAX),
+                    a.resume,
+                    |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
+                )?,
+                None => bake_one::<Sh>(input, &s, a.shard, &ctx)?,
+            }
         }
         relight_method::BakeKind::Sg => {
             let s = SgSettings {
@@ -195,7 +229,9 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             bake_one::<Sg>(input, &s, a.shard, &ctx)?
         }
     };
-    baked.write(&a.out)?;
+    if a.checkpoint_vertices.is_none() {
+        baked.write(&a.out)?; // (a checkpointed bake has written it)
+    }
     report(&a.out, &baked, out);
     Ok(())
 }

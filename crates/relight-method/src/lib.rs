@@ -37,6 +37,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod checkpoint;
 mod error;
 pub mod hybrid;
 pub mod sg;
