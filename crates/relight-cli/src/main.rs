@@ -107,6 +107,10 @@ struct BenchArgs {
     /// Fewer rays, samples, vertices and repetitions (a quick smoke run).
     #[arg(long)]
     quick: bool,
+    /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
+    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame.
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
 }
 
 /// Restore the default SIGPIPE action, so `relight ... | head` ends quietly like other Unix
@@ -181,6 +185,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
                     .or_else(|| std::env::var_os("RELIGHT_SHARED").map(PathBuf::from)),
                 relight_vertices: a.relight_vertices,
                 quick: a.quick,
+                only: a.only,
             })?;
             out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);

@@ -63,6 +63,8 @@ pub struct BenchOptions {
     pub relight_vertices: usize,
     /// Fewer rays, samples, vertices and repetitions (a quick smoke run).
     pub quick: bool,
+    /// Run only these sections ([`SECTIONS`]); empty: all.
+    pub only: Vec<String>,
 }
 
 /// One table of the report.
@@ -165,6 +167,20 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
     Ok(relight_scene::io::load_mesh(path)?.mesh)
 }
 
+/// The sections' names, in the order of the report (`relight bench --only NAME`).
+pub const SECTIONS: [&str; 10] = [
+    "rays",
+    "sh-bake",
+    "shard",
+    "relight",
+    "projection",
+    "hybrid",
+    "prefilter",
+    "sg-fit",
+    "sg-bake",
+    "sg-frame",
+];
+
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
 ///
 /// # Errors
@@ -175,6 +191,12 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         return Err(EvalError::Options(
             "bench: --rays must be at least 1".into(),
         ));
+    }
+    if let Some(bad) = a.only.iter().find(|o| !SECTIONS.contains(&o.as_str())) {
+        return Err(EvalError::Options(format!(
+            "bench: unknown section '{bad}' (sections: {})",
+            SECTIONS.join(", ")
+        )));
     }
     if a.relight_vertices == 0 {
         return Err(EvalError::Options(
@@ -192,24 +214,43 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         report.sections.push(s);
     };
 
+    let on = |name: &str| a.only.is_empty() || a.only.iter().any(|o| o == name);
     let rays = if a.quick { a.rays.min(200_000) } else { a.rays };
-    push(rays::section(&a.ray_mesh, &a.data, rays, threads)?);
-    push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
-    push(shard::section(&a.bake_mesh, &a.data, a.quick)?);
+    if on("rays") {
+        push(rays::section(&a.ray_mesh, &a.data, rays, threads)?);
+    }
+    if on("sh-bake") {
+        push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
+    if on("shard") {
+        push(shard::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
     let verts = if a.quick {
         a.relight_vertices.min(200_000)
     } else {
         a.relight_vertices
     };
-    push(relight::section(verts, 5));
-    push(projection::section(a.quick));
-    for s in hybrid::sections(a.quick) {
-        push(s);
+    if on("relight") {
+        push(relight::section(verts, 5));
     }
-    push(prefilter::section());
-    push(sg_fit::section(a.quick));
-    push(sg_bake::section(&a.data, a.quick)?);
-    push(sg_frame::section(a.quick));
+    if on("projection") {
+        push(projection::section(a.quick));
+    }
+    if on("hybrid") {
+        hybrid::sections(a.quick).into_iter().for_each(&mut push);
+    }
+    if on("prefilter") {
+        push(prefilter::section());
+    }
+    if on("sg-fit") {
+        push(sg_fit::section(a.quick));
+    }
+    if on("sg-bake") {
+        push(sg_bake::section(&a.data, a.quick)?);
+    }
+    if on("sg-frame") {
+        push(sg_frame::section(a.quick));
+    }
     Ok(report)
 }
 
@@ -253,7 +294,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn zero_rays_or_vertices_are_refused_by_name() {
+    fn zero_rays_or_vertices_and_unknown_sections_are_refused_by_name() {
         let o = BenchOptions {
             rays: 0,
             ray_mesh: None,
@@ -261,17 +302,25 @@ mod tests {
             data: None,
             relight_vertices: 10,
             quick: true,
+            only: vec![],
         };
         let e = run(&o).unwrap_err().to_string();
         assert!(e.contains("--rays"), "{e}");
+        let o = BenchOptions { rays: 10, ..o };
         let e = run(&BenchOptions {
-            rays: 10,
             relight_vertices: 0,
-            ..o
+            ..o.clone()
         })
         .unwrap_err()
         .to_string();
         assert!(e.contains("--relight-vertices"), "{e}");
+        let e = run(&BenchOptions {
+            only: vec!["sh-bake".into(), "nope".into()],
+            ..o
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("'nope'") && e.contains("sg-frame"), "{e}");
     }
 
     #[test]

@@ -36,20 +36,23 @@ pub(super) fn section(
         Some(p) => (
             p.with_file_name("<bench>.json"),
             json!({"type": "mesh", "file": p.file_name().map(|f| f.to_string_lossy()),
-                   "fit": {"height": 1.0}}),
+                   "fit": {"base": [0, 0, 0], "height": 1.0}}),
         ),
         None => (
             PathBuf::from("<bench>"),
             json!({"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "rings": 128}),
         ),
     };
-    let desc: SceneDesc = serde_json::from_value(json!({
+    let mut desc: SceneDesc = serde_json::from_value(json!({
         "shapes": [shape, {"type": "plane", "center": [0, 0, 0], "size": 4, "divisions": 8}],
         "environment": {"type": "constant", "radiance": [1, 1, 1]},
         "camera": {"origin": [0, 1, 3], "target": [0, 0.5, 0], "up": [0, 1, 0],
                    "fov_deg": 40, "width": 64, "height": 48}
     }))
     .map_err(|e| EvalError::Options(format!("bench scene: {e}")))?;
+    if let Some(dir) = path.as_ref().and_then(|p| p.parent()) {
+        desc.resolve_paths(dir);
+    }
     let scene = desc.build(&origin)?;
     let input = BakeInput {
         desc: &desc,
