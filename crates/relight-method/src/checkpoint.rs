@@ -104,9 +104,11 @@ where
         std::fs::create_dir_all(&dir)
             .map_err(|e| MethodError::Settings(format!("{}: {e}", dir.display())))?;
     }
+    let mut seconds = 0.0;
     for (index, slot) in have.iter_mut().enumerate() {
         if slot.is_none() {
             let part = bake_part::<M>(input, settings, Shard { index, count: n }, ctx)?;
+            seconds += part.record().seconds;
             let path = dir.join(format!("chunk-{index}-of-{n}.relight"));
             part.write(&path)?;
             *slot = Some(path);
@@ -117,8 +119,10 @@ where
         .into_iter()
         .flatten()
         .map(|p| Ok((p.clone(), read_any(&p)?)));
-    let whole = merge(parts)?;
+    let mut whole = merge(parts)?;
     whole.write(out)?;
+    // The time of the chunks baked by this run (a resumed run does not redo the others).
+    whole.record_mut().seconds = seconds;
     std::fs::remove_dir_all(&dir)
         .map_err(|e| MethodError::Settings(format!("{}: {e}", dir.display())))?;
     Ok(whole)
