@@ -44,6 +44,8 @@ pub mod sg;
 pub mod sh;
 pub mod shard;
 pub mod store;
+#[cfg(test)]
+mod test_scene;
 
 pub use error::MethodError;
 pub use store::{BakeRecord, BakedScene};

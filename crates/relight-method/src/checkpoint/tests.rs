@@ -3,19 +3,8 @@
 
 use super::*;
 use crate::sh::Sh;
+use crate::test_scene::with_input;
 use relight_bake::sh::ShBakeSettings;
-use relight_scene::scene_file::SceneDesc;
-
-fn desc(radius: f32) -> SceneDesc {
-    serde_json::from_str(&format!(
-        r#"{{"shapes": [{{"type": "sphere", "center": [0, 0.6, 0], "radius": {radius}, "rings": 8}},
-                      {{"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 4}}],
-            "environment": {{"type": "constant", "radiance": [1, 1, 1]}},
-            "camera": {{"origin": [0, 1.5, 3], "target": [0, 0.4, 0], "up": [0, 1, 0],
-                       "fov_deg": 40, "width": 24, "height": 16}}}}"#
-    ))
-    .unwrap()
-}
 
 fn settings() -> ShBakeSettings {
     ShBakeSettings {
@@ -31,17 +20,6 @@ fn tmp(tag: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-/// Run `f` with the bake input of the scene with `radius`.
-fn with_input<T>(radius: f32, f: impl FnOnce(BakeInput) -> T) -> T {
-    let d = desc(radius);
-    let scene = d.build(Path::new("<test>")).unwrap();
-    f(BakeInput {
-        desc: &d,
-        scene: &scene,
-        origin: Path::new("<test>"),
-    })
 }
 
 fn resumable(radius: f32, out: &Path, chunk: usize, resume: bool) -> Result<Baked, MethodError> {

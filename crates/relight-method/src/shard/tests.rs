@@ -3,21 +3,8 @@
 
 use super::*;
 use crate::sh::Sh;
+use crate::test_scene::with_input;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
-use relight_scene::scene_file::SceneDesc;
-
-fn desc(radius: f32) -> SceneDesc {
-    serde_json::from_str(&format!(
-        r#"{{"shapes": [
-              {{"type": "sphere", "center": [0, 0.6, 0], "radius": {radius}, "rings": 8,
-               "material": {{"type": "lambert", "albedo": [0.8, 0.3, 0.2]}}}},
-              {{"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 4}}],
-            "environment": {{"type": "constant", "radiance": [1, 1, 1]}},
-            "camera": {{"origin": [0, 1.5, 3], "target": [0, 0.4, 0], "up": [0, 1, 0],
-                       "fov_deg": 40, "width": 24, "height": 16}}}}"#
-    ))
-    .unwrap()
-}
 
 fn settings(transfer: ShTransferKind, seed: u64) -> ShBakeSettings {
     ShBakeSettings {
@@ -31,18 +18,13 @@ fn settings(transfer: ShTransferKind, seed: u64) -> ShBakeSettings {
 
 /// Bake `shard` (or the whole, for `None`) of the scene with `radius`.
 fn bake(radius: f32, s: &ShBakeSettings, shard: Option<Shard>) -> Result<Baked, MethodError> {
-    let d = desc(radius);
-    let scene = d.build(Path::new("<test>")).unwrap();
-    let input = BakeInput {
-        desc: &d,
-        scene: &scene,
-        origin: Path::new("<test>"),
-    };
-    let ctx = BakeContext::default();
-    match shard {
-        Some(sh) => bake_part::<Sh>(input, s, sh, &ctx),
-        None => Ok(Sh::bake(input, s, 0..scene.mesh.vertex_count(), &ctx)?.into()),
-    }
+    with_input(radius, |input| {
+        let ctx = BakeContext::default();
+        match shard {
+            Some(sh) => bake_part::<Sh>(input, s, sh, &ctx),
+            None => Ok(Sh::bake(input, s, 0..input.scene.mesh.vertex_count(), &ctx)?.into()),
+        }
+    })
 }
 
 fn parts(radius: f32, s: &ShBakeSettings, n: usize) -> Vec<(PathBuf, Baked)> {
