@@ -265,7 +265,7 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
     let r = baked.record();
     let v = baked.scene().mesh.vertex_count().max(1);
     let size = args::mib(path);
-    let peak = args::peak_rss_mib();
+    let peak = relight_eval::bench::peak_rss_mib();
     out.line(format!(
         "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}{}",
         path.display(),

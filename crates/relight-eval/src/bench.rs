@@ -76,6 +76,9 @@ pub struct Section {
     pub columns: Vec<String>,
     /// Rows (numbers where the cell is a number).
     pub rows: Vec<Vec<Value>>,
+    /// Peak resident memory of the process while the section ran, MiB (Linux; `None`
+    /// elsewhere).
+    pub peak_rss_mib: Option<f64>,
 }
 
 impl Section {
@@ -84,6 +87,7 @@ impl Section {
             title: title.into(),
             columns: columns.iter().map(|c| c.to_string()).collect(),
             rows: vec![],
+            peak_rss_mib: None,
         }
     }
 
@@ -119,8 +123,32 @@ impl Section {
                 r.iter().map(cell).collect::<Vec<_>>().join(" | ")
             ));
         }
+        if let Some(m) = self.peak_rss_mib {
+            s.push_str(&format!("\npeak resident memory: {m:.0} MiB\n"));
+        }
         s
     }
+}
+
+/// Peak resident memory of this process since the last [`reset_peak_rss`] (or its start),
+/// MiB: Linux `VmHWM`; `None` elsewhere.
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib / 1024.0)
+}
+
+/// Reset the peak of [`peak_rss_mib`] to the current resident memory (Linux: `5` written to
+/// `/proc/self/clear_refs`); does nothing where that is not possible.
+pub fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
 /// The whole report.
@@ -209,7 +237,11 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         arch: std::env::consts::ARCH.into(),
         sections: vec![],
     };
-    let mut push = |s: Section| {
+    // Each section's peak memory: reset before it, read after it.
+    reset_peak_rss();
+    let mut push = |mut s: Section| {
+        s.peak_rss_mib = peak_rss_mib();
+        reset_peak_rss();
         eprintln!("{}", s.markdown());
         report.sections.push(s);
     };
@@ -321,6 +353,22 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("'nope'") && e.contains("sg-frame"), "{e}");
+    }
+
+    #[test]
+    fn peak_memory_sees_an_allocation_and_resets() {
+        let Some(before) = peak_rss_mib() else {
+            return; // not Linux: nothing to measure
+        };
+        let v = vec![1u8; 96 << 20]; // touched: resident
+        std::hint::black_box(&v);
+        let with = peak_rss_mib().unwrap();
+        assert!(with >= before.max(96.0), "{before} -> {with}");
+        drop(v);
+        reset_peak_rss();
+        let after = peak_rss_mib().unwrap();
+        // Resetting is best effort (a kernel may refuse clear_refs): never above the peak.
+        assert!(after <= with, "{with} -> {after}");
     }
 
     #[test]
