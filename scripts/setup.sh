@@ -2,12 +2,15 @@
 # One-time, idempotent set-up of what relight needs beyond the Rust toolchain, on Debian 12:
 #   - libembree-dev : Embree 3, relight's default ray-casting back-end and benchmark baseline
 #   - libllvm19     : lets Mitsuba 3 use its fast `llvm_ad_rgb` variant (else `scalar_rgb`)
+#   - slurm-wlm, munge : the one-node Slurm cluster of the sharded-bake test (the test starts
+#                     and stops it itself with deploy/slurm/local-cluster.sh; no service is
+#                     enabled)
 #   - a Python venv with Mitsuba 3 + numpy at ${RELIGHT_VENV:-$HOME/.cache/relight/venv},
 #     used only for ground truth (tools/mitsuba_reference.py and the tests that compare with it)
 # Each step is skipped when already done. Set RELIGHT_SKIP_MITSUBA=1 to skip the venv.
 set -euo pipefail
 
-pkgs=(libembree-dev libllvm19)
+pkgs=(libembree-dev libllvm19 slurm-wlm munge)
 missing=()
 for p in "${pkgs[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

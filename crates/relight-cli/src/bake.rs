@@ -7,6 +7,7 @@ use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
+use relight_method::shard::{bake_part, Shard};
 use relight_method::{BakeContext, BakeInput, Baked, Method, MethodKind};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -43,6 +44,21 @@ pub struct Args {
     /// Ray-casting back-end: embree or bvh (default: the fastest in this build).
     #[arg(long)]
     pub backend: Option<String>,
+    /// Bake only part I of N (0-based; e.g. `--shard $SLURM_ARRAY_TASK_ID/4`): a part bundle
+    /// of the vertices I*V/N..(I+1)*V/N, for `relight merge` (sh with unshadowed or shadowed
+    /// transfer; see deploy/slurm/).
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<Shard>,
+    /// Checkpoint the bake every N vertices into OUT.checkpoint/ (atomic chunk bundles), so
+    /// that a killed bake can be finished with --resume (sh with unshadowed or shadowed
+    /// transfer).
+    #[arg(long, value_name = "N", conflicts_with = "shard", value_parser = clap::value_parser!(u64).range(1..))]
+    pub checkpoint_vertices: Option<u64>,
+    /// Finish an interrupted checkpointed bake: bake only the chunks missing from
+    /// OUT.checkpoint/ (same command and --checkpoint-vertices), then write the bundle an
+    /// uninterrupted bake writes, byte for byte.
+    #[arg(long, requires = "checkpoint_vertices")]
+    pub resume: bool,
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
@@ -100,6 +116,27 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
             (&[MethodKind::Sg], sg),
         ],
     )?;
+    if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
+        let opt = if a.shard.is_some() {
+            "--shard"
+        } else {
+            "--checkpoint-vertices"
+        };
+        if a.method == MethodKind::Sg {
+            bail!("{opt}: sg bakes cannot be split (the flood fill couples neighbouring vertices, Green 2005 eq. 2.6); bake them whole");
+        }
+        if a.sh.transfer == ShTransferKind::Interreflected {
+            bail!("{opt}: interreflected transfer cannot be split (each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh); bake it whole, or split a shadowed bake");
+        }
+    }
+    let ckpt = relight_method::checkpoint::folder(&a.out);
+    if a.checkpoint_vertices.is_none() && ckpt.exists() {
+        bail!(
+            "{}: holds a checkpoint of an interrupted bake of {}: rerun the same command with --checkpoint-vertices and --resume to finish it, or delete the folder",
+            ckpt.display(),
+            a.out.display()
+        );
+    }
     if given(m, "bounces") {
         match a.method {
             MethodKind::Sh | MethodKind::Hybrid
@@ -131,7 +168,6 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         scene: &scene,
         origin: &a.scene,
     };
-    let all = 0..scene.mesh.vertex_count();
     let what = format!(
         "baking {} ({} vertices, {} triangles)",
         a.scene.display(),
@@ -156,7 +192,18 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 s.transfer.name(),
                 s.samples
             );
-            Sh::bake(input, &s, all, &ctx)?.into()
+            match a.checkpoint_vertices {
+                Some(n) => relight_method::checkpoint::bake_resumable::<Sh>(
+                    input,
+                    &s,
+                    &ctx,
+                    &a.out,
+                    usize::try_from(n).unwrap_or(usize::MAX),
+                    a.resume,
+                    |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
+                )?,
+                None => bake_one::<Sh>(input, &s, a.shard, &ctx)?,
+            }
         }
         relight_method::BakeKind::Sg => {
             let s = SgSettings {
@@ -179,12 +226,38 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 r = b.direct_res,
                 q = b.indirect_res,
             );
-            Sg::bake(input, &s, all, &ctx)?.into()
+            bake_one::<Sg>(input, &s, a.shard, &ctx)?
         }
     };
-    baked.write(&a.out)?;
+    if a.checkpoint_vertices.is_none() {
+        baked.write(&a.out)?; // (a checkpointed bake has written it)
+    }
     report(&a.out, &baked, out);
     Ok(())
+}
+
+/// Bake the whole of `input` with `M`, or part `shard` of it.
+fn bake_one<M: Method>(
+    input: BakeInput,
+    settings: &M::Settings,
+    shard: Option<Shard>,
+    ctx: &BakeContext,
+) -> Result<Baked>
+where
+    M::Baked: Into<Baked>,
+{
+    let v = input.scene.mesh.vertex_count();
+    Ok(match shard {
+        Some(s) => {
+            let r = s.range(v);
+            eprintln!(
+                "part {}/{}: vertices {}..{}",
+                s.index, s.count, r.start, r.end
+            );
+            bake_part::<M>(input, settings, s, ctx)?
+        }
+        None => M::bake(input, settings, 0..v, ctx)?.into(),
+    })
 }
 
 /// Print what was written.
@@ -192,36 +265,25 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
     let r = baked.record();
     let v = baked.scene().mesh.vertex_count().max(1);
     let size = args::mib(path);
+    let peak = relight_eval::bench::peak_rss_mib();
     out.line(format!(
-        "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}",
+        "wrote {} ({size:.2} MiB, {} bytes per vertex) in {:.2} s with {}{}",
         path.display(),
         (size * (1 << 20) as f64) as usize / v,
         r.seconds,
-        r.backend
+        r.backend,
+        peak.map_or(String::new(), |m| format!(", peak memory {m:.0} MiB"))
     ));
     let mut extra = json!({});
     if let Baked::Sg(sg) = baked {
-        let s = &sg.bake.stats;
-        out.line(format!(
-            "SG transfer: {} bytes per vertex as {}; fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
-            sg.transfer_bytes_per_vertex(),
-            if r.f16 { "f16" } else { "f32" },
-            s.mean_relative_error[0],
-            s.mean_relative_error[1],
-            s.iterations,
-            s.flips,
-            s.flips_after_relaxation
-        ));
-        extra = json!({
-            "transfer_bytes_per_vertex": sg.transfer_bytes_per_vertex(),
-            "fit_mean_relative_error": s.mean_relative_error,
-            "fit_iterations": s.iterations,
-            "flips": s.flips,
-            "flips_after_relaxation": s.flips_after_relaxation,
-        });
+        let (lines, j) = sg.describe();
+        lines.into_iter().for_each(|l| out.line(l));
+        extra = j;
     }
     out.summary(json!({
         "command": "bake",
+        "shard": r.shard,
+        "peak_rss_mib": peak,
         "method": baked.kind().name(),
         "out": path,
         "bytes": std::fs::metadata(path).map_or(0, |m| m.len()),
@@ -233,4 +295,46 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
         "settings": serde_json::from_str::<serde_json::Value>(&baked.settings_json()).unwrap_or_default(),
         "sg": extra,
     }));
+}
+
+/// Arguments of `relight merge`.
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The part bundles of one sharded bake (`relight bake --shard I/N`), in any order.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output bundle (.relight): byte-identical to the same bake done in one process.
+    #[arg(short, long)]
+    pub out: PathBuf,
+}
+
+/// Run `relight merge`.
+pub fn merge(a: MergeArgs, out: &Out) -> Result<()> {
+    let inputs: Vec<&Path> = a.parts.iter().map(PathBuf::as_path).collect();
+    relight_bundle::output::check_outputs(&[&a.out], &["relight"], &inputs)?;
+    let t0 = std::time::Instant::now();
+    let parts = a
+        .parts
+        .iter()
+        .map(|p| Ok((p.clone(), relight_method::read_any(p)?)));
+    let whole = relight_method::shard::merge(parts)?;
+    whole.write(&a.out)?;
+    out.line(format!(
+        "merged {} parts into {} ({:.2} MiB, {} vertices) in {:.2} s",
+        a.parts.len(),
+        a.out.display(),
+        args::mib(&a.out),
+        whole.scene().mesh.vertex_count(),
+        t0.elapsed().as_secs_f64()
+    ));
+    out.summary(json!({
+        "command": "merge",
+        "parts": a.parts,
+        "out": a.out,
+        "bytes": std::fs::metadata(&a.out).map_or(0, |m| m.len()),
+        "vertices": whole.scene().mesh.vertex_count(),
+        "bake_seconds": whole.record().seconds,
+        "seconds": t0.elapsed().as_secs_f64(),
+    }));
+    Ok(())
 }

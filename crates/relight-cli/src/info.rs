@@ -47,45 +47,17 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     out.line(format!("  renders with --method {}", methods.join(", ")));
     let mut sg_json = json!(null);
     if let Baked::Sg(sg) = &baked {
-        let (s, k) = (&sg.settings.bake, &sg.bake);
-        let v = sg.scene.mesh.vertex_count().max(1);
+        let (lines, j) = sg.describe();
         let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
-        let distinct = k
-            .materials
-            .iter()
-            .map(|m| format!("{m:?}"))
-            .collect::<std::collections::BTreeSet<_>>();
-        let st = &k.stats;
-        out.line("  SG (Green 2005 view-dependent glossy PRT):");
+        for l in lines {
+            out.line(format!("  {l}"));
+        }
+        let v = sg.scene.mesh.vertex_count().max(1);
         out.line(format!(
-            "    {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
-            k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
-        ));
-        out.line(format!(
-            "    bytes per vertex: {} transfer (lobes + diffuse SH, {}), {} all tensors",
-            sg.transfer_bytes_per_vertex(),
-            if sg.record.f16 { "f16" } else { "f32" },
+            "  all tensors: {} bytes per vertex",
             tensor_bytes / v
         ));
-        let blend = sg.settings.blend.as_ref().map_or(String::new(), |b| {
-            format!(" (blend to {:?} along {})", b.to, b.axis)
-        });
-        out.line(format!(
-            "    {} distinct per-vertex materials{blend}",
-            distinct.len()
-        ));
-        out.line(format!(
-            "    fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} iterations; flips {} -> {} after relaxation",
-            st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
-        ));
-        sg_json = json!({
-            "views": k.direct.view_count,
-            "transfer_bytes_per_vertex": sg.transfer_bytes_per_vertex(),
-            "distinct_materials": distinct.len(),
-            "fit_mean_relative_error": st.mean_relative_error,
-            "flips": st.flips,
-            "flips_after_relaxation": st.flips_after_relaxation,
-        });
+        sg_json = j;
     }
     let tensors: serde_json::Map<String, serde_json::Value> = b
         .tensors

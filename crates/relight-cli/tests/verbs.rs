@@ -272,6 +272,30 @@ fn json_summaries_of_every_verb() {
         (Some(true), Some("sh"))
     );
     assert!(v["tensors"]["transfer"]["shape"].is_array());
+    let part = d.join("p.relight");
+    let bake_part = [
+        "bake",
+        s(&flat),
+        "-o",
+        s(&part),
+        "--samples",
+        "16",
+        "--shard",
+        "0/1",
+    ];
+    let v = json(&relight(&[&bake_part[..], &["--json"]].concat()));
+    assert_eq!(v["shard"]["count"], 1, "{v}");
+    // Peak memory: at least the binary and the scene, far below this machine's.
+    let peak = v["peak_rss_mib"].as_f64().unwrap();
+    assert!((1.0..4096.0).contains(&peak), "{v}");
+    let m = d.join("m.relight");
+    let v = json(&relight(&["merge", s(&part), "-o", s(&m), "--json"]));
+    assert_eq!(v["command"].as_str(), Some("merge"));
+    assert_eq!(v["parts"].as_array().map(Vec::len), Some(1));
+    assert_eq!(
+        v["bytes"].as_u64(),
+        Some(std::fs::metadata(&m).unwrap().len())
+    );
     let (x, y) = (d.join("x.exr"), d.join("y.exr"));
     let v = json(&relight(&["render", s(&b), "-o", s(&x), "--json"]));
     assert_eq!(v["outputs"][0].as_str(), Some(s(&x)));

@@ -7,6 +7,8 @@
 //!    from the surface of a ~100K-triangle mesh, as a ratio to Embree 3.
 //! 2. [`sh_bake`]: SH bake time of bunny_watertight.obj (order 4, 1024 samples, shadowed + 1
 //!    bounce), and its overhead over casting the same rays with nothing else done.
+//!    [`shard`]: the same mesh's shadowed bake in N = 1, 2, 4 parts plus the merge, against
+//!    the one-process bake (and whether the merged bundle is byte-identical).
 //! 3. [`relight`]: SH relight time per frame for 1M vertices at order 5, against a
 //!    STREAM-like copy.
 //! 4. [`projection`]: exact SH projection of a latlong map against the point rule.
@@ -34,6 +36,7 @@ pub mod sg_bake;
 pub mod sg_fit;
 pub mod sg_frame;
 pub mod sh_bake;
+pub mod shard;
 
 use crate::{EvalError, Result};
 use relight_scene::mesh::TriMesh;
@@ -60,6 +63,8 @@ pub struct BenchOptions {
     pub relight_vertices: usize,
     /// Fewer rays, samples, vertices and repetitions (a quick smoke run).
     pub quick: bool,
+    /// Run only these sections ([`SECTIONS`]); empty: all.
+    pub only: Vec<String>,
 }
 
 /// One table of the report.
@@ -71,6 +76,9 @@ pub struct Section {
     pub columns: Vec<String>,
     /// Rows (numbers where the cell is a number).
     pub rows: Vec<Vec<Value>>,
+    /// Peak resident memory of the process while the section ran, MiB (Linux; `None`
+    /// elsewhere).
+    pub peak_rss_mib: Option<f64>,
 }
 
 impl Section {
@@ -79,6 +87,7 @@ impl Section {
             title: title.into(),
             columns: columns.iter().map(|c| c.to_string()).collect(),
             rows: vec![],
+            peak_rss_mib: None,
         }
     }
 
@@ -114,8 +123,32 @@ impl Section {
                 r.iter().map(cell).collect::<Vec<_>>().join(" | ")
             ));
         }
+        if let Some(m) = self.peak_rss_mib {
+            s.push_str(&format!("\npeak resident memory: {m:.0} MiB\n"));
+        }
         s
     }
+}
+
+/// Peak resident memory of this process since the last [`reset_peak_rss`] (or its start),
+/// MiB: Linux `VmHWM`; `None` elsewhere.
+pub fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib / 1024.0)
+}
+
+/// Reset the peak of [`peak_rss_mib`] to the current resident memory (Linux: `5` written to
+/// `/proc/self/clear_refs`); does nothing where that is not possible.
+pub fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
 /// The whole report.
@@ -127,6 +160,17 @@ pub struct BenchReport {
     pub arch: String,
     /// The tables, in order.
     pub sections: Vec<Section>,
+}
+
+impl BenchReport {
+    /// The report as markdown: a title line, then every section's table.
+    pub fn markdown(&self) -> String {
+        let mut s = format!("# relight bench ({} threads, {})", self.threads, self.arch);
+        for t in &self.sections {
+            s += &format!("\n\n{}", t.markdown().trim_end());
+        }
+        s
+    }
 }
 
 /// The mesh at `explicit`, else `<data>/<rel>` if that file exists, with its name; `None`
@@ -151,6 +195,20 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
     Ok(relight_scene::io::load_mesh(path)?.mesh)
 }
 
+/// The sections' names, in the order of the report (`relight bench --only NAME`).
+pub const SECTIONS: [&str; 10] = [
+    "rays",
+    "sh-bake",
+    "shard",
+    "relight",
+    "projection",
+    "hybrid",
+    "prefilter",
+    "sg-fit",
+    "sg-bake",
+    "sg-frame",
+];
+
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
 ///
 /// # Errors
@@ -161,6 +219,12 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         return Err(EvalError::Options(
             "bench: --rays must be at least 1".into(),
         ));
+    }
+    if let Some(bad) = a.only.iter().find(|o| !SECTIONS.contains(&o.as_str())) {
+        return Err(EvalError::Options(format!(
+            "bench: unknown section '{bad}' (sections: {})",
+            SECTIONS.join(", ")
+        )));
     }
     if a.relight_vertices == 0 {
         return Err(EvalError::Options(
@@ -173,28 +237,52 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         arch: std::env::consts::ARCH.into(),
         sections: vec![],
     };
-    let mut push = |s: Section| {
+    // Each section's peak memory: reset before it, read after it.
+    reset_peak_rss();
+    let mut push = |mut s: Section| {
+        s.peak_rss_mib = peak_rss_mib();
+        reset_peak_rss();
         eprintln!("{}", s.markdown());
         report.sections.push(s);
     };
 
+    let on = |name: &str| a.only.is_empty() || a.only.iter().any(|o| o == name);
     let rays = if a.quick { a.rays.min(200_000) } else { a.rays };
-    push(rays::section(&a.ray_mesh, &a.data, rays, threads)?);
-    push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
+    if on("rays") {
+        push(rays::section(&a.ray_mesh, &a.data, rays, threads)?);
+    }
+    if on("sh-bake") {
+        push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
+    if on("shard") {
+        push(shard::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
     let verts = if a.quick {
         a.relight_vertices.min(200_000)
     } else {
         a.relight_vertices
     };
-    push(relight::section(verts, 5));
-    push(projection::section(a.quick));
-    for s in hybrid::sections(a.quick) {
-        push(s);
+    if on("relight") {
+        push(relight::section(verts, 5));
     }
-    push(prefilter::section());
-    push(sg_fit::section(a.quick));
-    push(sg_bake::section(&a.data, a.quick)?);
-    push(sg_frame::section(a.quick));
+    if on("projection") {
+        push(projection::section(a.quick));
+    }
+    if on("hybrid") {
+        hybrid::sections(a.quick).into_iter().for_each(&mut push);
+    }
+    if on("prefilter") {
+        push(prefilter::section());
+    }
+    if on("sg-fit") {
+        push(sg_fit::section(a.quick));
+    }
+    if on("sg-bake") {
+        push(sg_bake::section(&a.data, a.quick)?);
+    }
+    if on("sg-frame") {
+        push(sg_frame::section(a.quick));
+    }
     Ok(report)
 }
 
@@ -238,7 +326,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn zero_rays_or_vertices_are_refused_by_name() {
+    fn zero_rays_or_vertices_and_unknown_sections_are_refused_by_name() {
         let o = BenchOptions {
             rays: 0,
             ray_mesh: None,
@@ -246,17 +334,41 @@ mod tests {
             data: None,
             relight_vertices: 10,
             quick: true,
+            only: vec![],
         };
         let e = run(&o).unwrap_err().to_string();
         assert!(e.contains("--rays"), "{e}");
+        let o = BenchOptions { rays: 10, ..o };
         let e = run(&BenchOptions {
-            rays: 10,
             relight_vertices: 0,
-            ..o
+            ..o.clone()
         })
         .unwrap_err()
         .to_string();
         assert!(e.contains("--relight-vertices"), "{e}");
+        let e = run(&BenchOptions {
+            only: vec!["sh-bake".into(), "nope".into()],
+            ..o
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("'nope'") && e.contains("sg-frame"), "{e}");
+    }
+
+    #[test]
+    fn peak_memory_sees_an_allocation_and_resets() {
+        let Some(before) = peak_rss_mib() else {
+            return; // not Linux: nothing to measure
+        };
+        let v = vec![1u8; 96 << 20]; // touched: resident
+        std::hint::black_box(&v);
+        let with = peak_rss_mib().unwrap();
+        assert!(with >= before.max(96.0), "{before} -> {with}");
+        drop(v);
+        reset_peak_rss();
+        let after = peak_rss_mib().unwrap();
+        // Resetting is best effort (a kernel may refuse clear_refs): never above the peak.
+        assert!(after <= with, "{with} -> {after}");
     }
 
     #[test]

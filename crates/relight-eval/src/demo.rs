@@ -198,6 +198,12 @@ fn render(frame: &mut dyn Frame, scene: &Scene) -> Result<(Image, f64)> {
 /// # Errors
 /// An output folder that cannot be written.
 pub fn run(o: &DemoOptions) -> Result<(PathBuf, PathBuf)> {
+    if !(16..=4096).contains(&o.width) || o.spp == 0 {
+        return Err(crate::EvalError::Options(format!(
+            "demo: --width {} must be in 16..=4096 and --spp {} at least 1",
+            o.width, o.spp
+        )));
+    }
     let t_start = Instant::now();
     output::create_dir(&o.out)?;
     let origin = Path::new("<built-in demo scene>");

@@ -56,6 +56,14 @@ pub enum MethodError {
         /// Vertices of the mesh.
         total: usize,
     },
+    /// The parts given to a merge do not make one whole bake (the message says why).
+    #[error("{path}: {message}")]
+    Merge {
+        /// The part at fault.
+        path: PathBuf,
+        /// What does not match.
+        message: String,
+    },
     /// Environment preparation failed (e.g. the decomposition of `hybrid`).
     #[error("{0}")]
     Environment(String),

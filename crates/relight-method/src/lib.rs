@@ -37,11 +37,15 @@
 //! # Ok(()) }
 //! ```
 
+pub mod checkpoint;
 mod error;
 pub mod hybrid;
 pub mod sg;
 pub mod sh;
+pub mod shard;
 pub mod store;
+#[cfg(test)]
+mod test_scene;
 
 pub use error::MethodError;
 pub use store::{BakeRecord, BakedScene};
@@ -229,6 +233,35 @@ impl Baked {
         match self {
             Baked::Sh(b) => &b.record,
             Baked::Sg(b) => &b.record,
+        }
+    }
+
+    /// How it was baked, to amend (a part's number).
+    pub(crate) fn record_mut(&mut self) -> &mut BakeRecord {
+        match self {
+            Baked::Sh(b) => &mut b.record,
+            Baked::Sg(b) => &mut b.record,
+        }
+    }
+
+    /// Take its scene out (leaving an empty one), to keep one copy when merging parts.
+    pub(crate) fn take_scene(&mut self) -> BakedScene {
+        let s = match self {
+            Baked::Sh(b) => &mut b.scene,
+            Baked::Sg(b) => &mut b.scene,
+        };
+        BakedScene {
+            desc: s.desc.clone(),
+            mesh: std::mem::take(&mut s.mesh),
+            materials: std::mem::take(&mut s.materials),
+        }
+    }
+
+    /// Put a scene back (see [`Baked::take_scene`]).
+    pub(crate) fn put_scene(&mut self, scene: BakedScene) {
+        match self {
+            Baked::Sh(b) => b.scene = scene,
+            Baked::Sg(b) => b.scene = scene,
         }
     }
 

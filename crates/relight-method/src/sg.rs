@@ -97,6 +97,49 @@ impl SgBaked {
         b * (self.bake.direct.view_count * lobes * SG_LOBE_FLOATS + self.bake.diffuse.coeff_count())
     }
 
+    /// A human description (one line each) and the same figures as JSON: views, lobes,
+    /// stored bytes per vertex, distinct materials and the fit's statistics (what `relight
+    /// bake` and `relight info` print).
+    pub fn describe(&self) -> (Vec<String>, serde_json::Value) {
+        let (s, k, st) = (&self.settings.bake, &self.bake, &self.bake.stats);
+        let distinct = k
+            .materials
+            .iter()
+            .map(|m| format!("{m:?}"))
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        let blend = self.settings.blend.as_ref().map_or(String::new(), |b| {
+            format!(" (blend to {:?} along {})", b.to, b.axis)
+        });
+        let lines = vec![
+            format!(
+                "SG (Green 2005): {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
+                k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
+            ),
+            format!(
+                "transfer: {} bytes per vertex as {}; {distinct} distinct per-vertex materials{blend}",
+                self.transfer_bytes_per_vertex(),
+                if self.record.f16 { "f16" } else { "f32" },
+            ),
+            format!(
+                "fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
+                st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
+            ),
+        ];
+        let json = serde_json::json!({
+            "views": k.direct.view_count,
+            "direct_lobes": s.direct_lobes,
+            "indirect_lobes": s.indirect_lobes,
+            "transfer_bytes_per_vertex": self.transfer_bytes_per_vertex(),
+            "distinct_materials": distinct,
+            "fit_mean_relative_error": st.mean_relative_error,
+            "fit_iterations": st.iterations,
+            "flips": st.flips,
+            "flips_after_relaxation": st.flips_after_relaxation,
+        });
+        (lines, json)
+    }
+
     /// Check every invariant of the contents: lobe arrays of the right sizes, unit axes,
     /// positive sharpness, finite non-negative amplitudes, one valid material per vertex,
     /// the diffuse transfer's layout.

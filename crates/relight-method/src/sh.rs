@@ -13,7 +13,7 @@ pub use frame::{world_light, ShFrame, ShFrameSettings};
 use crate::store::{flat3, float_tensor, unflat3, BakeRecord, BakedScene, TensorReader};
 use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError};
 use glam::Vec3;
-use relight_bake::sh::{bake_range, ShBakeSettings, ShTransfer};
+use relight_bake::sh::{bake_range, ShBakeSettings, ShTransfer, ShTransferKind};
 use relight_bundle::{Bundle, Tensor};
 use relight_scene::error::Invalid;
 use relight_sphere::sh::{sh_count, MAX_ORDER};
@@ -111,6 +111,14 @@ impl Method for Sh {
         Sh::validate(settings)?;
         let t0 = Instant::now();
         let scene = input.scene;
+        let n = scene.mesh.vertex_count();
+        if settings.transfer == ShTransferKind::Interreflected && range != (0..n) {
+            // relight_bake::sh::bake_range would trace the whole mesh for any range.
+            return Err(MethodError::Settings(format!(
+                "interreflected transfer cannot be baked in parts (asked vertices {}..{} of {n}): each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh; bake it whole, or shard a shadowed bake",
+                range.start, range.end
+            )));
+        }
         let caster = build_caster(&input, ctx)?;
         let settings = ShBakeSettings {
             progress: ctx.progress,
@@ -126,7 +134,6 @@ impl Method for Sh {
         let albedo = relight_bake::transport::vertex_albedo(&scene.mesh, &scene.materials)
             [range.clone()]
         .to_vec();
-        let n = scene.mesh.vertex_count();
         Ok(ShBaked {
             scene: BakedScene::of(&input),
             albedo,

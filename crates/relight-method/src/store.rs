@@ -7,8 +7,9 @@
 //!   [`legacy_record`] and each method's settings migration read them);
 //! * `relight_version`: the crate version that wrote it;
 //! * `settings`: the method's settings (its `Method::Settings`, serde), written once;
-//! * `record`: how the bake ran ([`BakeRecord`]: back-end, seconds, storage precision, vertex
-//!   range);
+//! * `record`: how the bake ran ([`BakeRecord`]: back-end, storage precision, and for a part
+//!   of a sharded bake its vertex range and part number; no time, so a bake's bytes are
+//!   reproducible);
 //! * `scene`, `materials`: the scene description and the merged scene's materials.
 //!
 //! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
@@ -31,18 +32,25 @@ pub const SCHEMA: u32 = 2;
 /// Largest finite f16: values stored as f16 are clamped to it.
 pub const F16_MAX: f32 = 65504.0;
 
-/// How a bake ran: recorded beside its settings, never an input of the bake.
+/// How a bake ran: recorded beside its settings, never an input of the bake. Nothing in it
+/// depends on when or where the bake ran, so the same bake always writes the same bytes (what
+/// [`crate::shard::merge`] relies on).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BakeRecord {
     /// Ray-casting back-end (`embree`, `bvh`).
     pub backend: String,
-    /// Wall time of the bake, seconds.
+    /// Wall time of the bake, seconds: reported by whoever baked, not written to bundles
+    /// (read back as 0; older bundles that hold it still read it).
+    #[serde(skip_serializing, default)]
     pub seconds: f64,
     /// Whether the method's float tensors are stored as f16.
     pub f16: bool,
     /// The vertices baked, when the bundle is one part of a sharded bake (`None`: all).
     #[serde(default)]
     pub range: Option<(usize, usize)>,
+    /// Which part of a sharded bake this is (`None`: a whole bake).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<crate::shard::Shard>,
 }
 
 impl BakeRecord {
@@ -75,6 +83,7 @@ impl BakeRecord {
             seconds,
             f16,
             range: (*range != (0..vertices)).then_some((range.start, range.end)),
+            shard: None,
         }
     }
 }
@@ -115,6 +124,23 @@ impl BakedScene {
         meta("relight_version", env!("CARGO_PKG_VERSION").into());
         meta("settings", json(settings)?);
         meta("record", json(record)?);
+        self.store_scene(b)
+    }
+
+    /// The scene part's bytes (description, materials, mesh tensors): equal for two bakes
+    /// exactly when they were made from the same scene.
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`] if the description cannot be recorded.
+    pub fn fingerprint(&self) -> Result<Vec<u8>, MethodError> {
+        let mut b = Bundle::new();
+        self.store_scene(&mut b)?;
+        Ok(b.to_bytes())
+    }
+
+    /// Metadata `scene`, `materials` and the mesh tensors.
+    fn store_scene(&self, b: &mut Bundle) -> Result<(), MethodError> {
+        let mut meta = |k: &str, v: String| b.metadata.insert(k.into(), v);
         meta("scene", json(&self.desc)?);
         meta("materials", json(&self.materials)?);
         let m = &self.mesh;
@@ -217,11 +243,20 @@ impl<'a> TensorReader<'a> {
 
     /// The bake record (schema 2), or the one of a legacy bundle.
     pub fn record(&self) -> Result<BakeRecord, MethodError> {
-        if self.is_legacy() {
-            legacy_record(self)
+        let r: BakeRecord = if self.is_legacy() {
+            legacy_record(self)?
         } else {
-            self.json("record")
+            self.json("record")?
+        };
+        if let Some(s) = r.shard {
+            if !(1..=crate::shard::MAX_SHARDS).contains(&s.count) || s.index >= s.count {
+                return Err(self.invalid(format!(
+                    "record: part {}/{} is not a valid part number",
+                    s.index, s.count
+                )));
+            }
         }
+        Ok(r)
     }
 
     /// A required tensor of the expected shape.

@@ -1,0 +1,132 @@
+//! Resumable bakes: a bake split into chunks (the parts of [`crate::shard`]), each written
+//! atomically to a checkpoint folder as soon as it is done; a bake killed at any moment and
+//! rerun with `resume` bakes only the missing chunks, then merges, and writes the bundle an
+//! uninterrupted bake writes, byte for byte.
+//!
+//! # Conventions
+//! * The folder is `<out>.checkpoint/` beside the output; chunk `i` of `n` is
+//!   `chunk-<i>-of-<n>.relight`, a part bundle with its own checksums. A chunk killed while
+//!   being written leaves only a temporary (cleaned by the next write), never a partial chunk.
+//! * A rerun without `resume` that finds the folder refuses, saying what it holds; with
+//!   `resume`, chunks of another split or scene are refused by name (settings are checked by
+//!   the final merge). The folder is removed once the bundle is written.
+//! * What can be split can be checkpointed: `sh` with unshadowed or shadowed transfer.
+
+use crate::shard::{bake_part, merge, Shard};
+use crate::{read_any, BakeContext, BakeInput, Baked, BakedScene, Method, MethodError};
+use std::path::{Path, PathBuf};
+
+/// The checkpoint folder of the output `out`.
+pub fn folder(out: &Path) -> PathBuf {
+    let mut name = out.file_name().unwrap_or_default().to_os_string();
+    name.push(".checkpoint");
+    out.with_file_name(name)
+}
+
+/// The chunks found in `dir`: `(index, count, path)`, sorted.
+fn chunks(dir: &Path) -> Result<Vec<(usize, usize, PathBuf)>, MethodError> {
+    let io = |e: std::io::Error| MethodError::Settings(format!("{}: {e}", dir.display()));
+    let mut found = vec![];
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        let parsed = name
+            .strip_prefix("chunk-")
+            .and_then(|s| s.strip_suffix(".relight"))
+            .and_then(|s| s.split_once("-of-"))
+            .and_then(|(i, n)| Some((i.parse().ok()?, n.parse().ok()?)));
+        if let Some((i, n)) = parsed {
+            found.push((i, n, path));
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// Bake `input` with `M` in chunks of about `chunk_vertices` vertices, checkpointed in
+/// [`folder`]`(out)`, resuming from the chunks there when `resume`; writes `out` and removes
+/// the folder. `done(i, n)` is called after each chunk (progress).
+///
+/// # Errors
+/// A checkpoint found without `resume` (the message says what it holds and what to do), one
+/// of another bake, a method that cannot be split, or any bake, read or write error.
+pub fn bake_resumable<M: Method>(
+    input: BakeInput,
+    settings: &M::Settings,
+    ctx: &BakeContext,
+    out: &Path,
+    chunk_vertices: usize,
+    resume: bool,
+    mut done: impl FnMut(usize, usize),
+) -> Result<Baked, MethodError>
+where
+    M::Baked: Into<Baked>,
+{
+    let v = input.scene.mesh.vertex_count();
+    let n = v
+        .div_ceil(chunk_vertices.max(1))
+        .clamp(1, crate::shard::MAX_SHARDS.min(v.max(1)));
+    let dir = folder(out);
+    let mut have = vec![None; n];
+    if dir.exists() {
+        let found = chunks(&dir)?;
+        if !resume {
+            return Err(MethodError::Settings(format!(
+                "{}: holds a checkpoint of an interrupted bake ({} chunk files): rerun with --resume to finish it, or delete the folder to start again",
+                dir.display(),
+                found.len()
+            )));
+        }
+        let scene = BakedScene::of(&input).fingerprint()?;
+        for (i, count, path) in found {
+            if count != n {
+                return Err(MethodError::Merge {
+                    path,
+                    message: format!(
+                        "is chunk {i} of {count}, but this bake makes {n} chunks (another --checkpoint-vertices?): delete {} to start again",
+                        dir.display()
+                    ),
+                });
+            }
+            let b = read_any(&path)?;
+            if b.scene().fingerprint()? != scene {
+                return Err(MethodError::Merge {
+                    path,
+                    message: format!(
+                        "was baked from another scene: delete {} to start again",
+                        dir.display()
+                    ),
+                });
+            }
+            have[i] = Some(path);
+        }
+    } else {
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| MethodError::Settings(format!("{}: {e}", dir.display())))?;
+    }
+    let mut seconds = 0.0;
+    for (index, slot) in have.iter_mut().enumerate() {
+        if slot.is_none() {
+            let part = bake_part::<M>(input, settings, Shard { index, count: n }, ctx)?;
+            seconds += part.record().seconds;
+            let path = dir.join(format!("chunk-{index}-of-{n}.relight"));
+            part.write(&path)?;
+            *slot = Some(path);
+        }
+        done(index, n);
+    }
+    let parts = have
+        .into_iter()
+        .flatten()
+        .map(|p| Ok((p.clone(), read_any(&p)?)));
+    let mut whole = merge(parts)?;
+    whole.write(out)?;
+    // The time of the chunks baked by this run (a resumed run does not redo the others).
+    whole.record_mut().seconds = seconds;
+    std::fs::remove_dir_all(&dir)
+        .map_err(|e| MethodError::Settings(format!("{}: {e}", dir.display())))?;
+    Ok(whole)
+}
+
+#[cfg(test)]
+mod tests;
