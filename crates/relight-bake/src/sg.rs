@@ -32,6 +32,7 @@
 
 pub mod fit;
 mod settings;
+pub use settings::MAX_LOBES;
 pub mod transport;
 
 use relight_scene::material::Material;
@@ -97,6 +98,37 @@ pub struct SgBake {
     pub stats: SgFitStats,
 }
 
+/// How the fit finds `N >= 2` lobes per (vertex, view) in the flood fill (issue 10; the
+/// measurements are in docs/RESULTS.md §8).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LobeOrder {
+    /// All `N` lobes refined together from the warm start (the neighbour's lobes), then
+    /// permuted to match the neighbours: the paper's fit (eq. 2.2), and every bake before
+    /// issue 10, and the default (docs/RESULTS.md §8: nested made the 2-lobe renders worse).
+    #[default]
+    Joint,
+    /// Lobe `k` added on the residual of the first `k - 1` and all `k` refined, `k = 1..N`:
+    /// slot 1 is the one-lobe fit's Gaussian, slot `k` the `k`-th one found, and the fit of
+    /// `N` lobes starts from the fit of `N - 1`.
+    Nested,
+}
+
+/// Where the flood fill starts the fit of a (vertex, view) in its first sweep (issue 10).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum FitStart {
+    /// From the lobes of the neighbour the vertex was reached from (the same view), a greedy
+    /// fit only if that ends poorly: every bake before issue 10.
+    #[default]
+    Neighbour,
+    /// From the greedy fit of the view's own data (`sg_fit::fit`), permuted to match the
+    /// neighbours, then refined with the coherence terms.
+    Greedy,
+}
+
 /// Settings of the fit (thesis section 2.2.2, eq. 2.2-2.6).
 ///
 /// The three weights are relative to each (vertex, view)'s data energy `sum dA |T|^2` (the
@@ -123,6 +155,22 @@ pub struct SgFitSettings {
     /// more bake time (docs/RESULTS.md §8).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().relax_sweeps))]
     pub relax_sweeps: usize,
+    /// Weight of the energy term of the fit (`relight_sphere::sg_fit` docs), relative: an
+    /// energy error of `e` (a fraction of the view's integral) costs as much as a relative
+    /// L2 error of `sqrt(energy_weight) e`. 0 disables it (bundles written before it
+    /// existed).
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().energy_weight))]
+    pub energy_weight: f64,
+    /// Where the first sweep starts each view's fit ([`FitStart`]).
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().fit_start))]
+    pub fit_start: FitStart,
+    /// How `N >= 2` lobes are fitted ([`LobeOrder`]). Bundles written before this setting
+    /// existed were fitted [`LobeOrder::Joint`].
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_order))]
+    pub lobe_order: LobeOrder,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]
     pub regions: usize,

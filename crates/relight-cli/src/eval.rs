@@ -24,7 +24,15 @@ pub enum EvalMethod {
 }
 
 /// Arguments of `relight eval`.
+///
+/// The SG bake's options are `relight bake --method sg`'s, except that `--direct-lobes`
+/// takes a comma-separated list here (`--direct-lobes 1,2,3`): every experiment is baked and
+/// scored once per count (read with [`direct_lobes`]; the bake settings keep the first).
 #[derive(clap::Args)]
+#[command(mut_arg("direct_lobes", |a| a
+    .value_delimiter(',')
+    .action(clap::ArgAction::Append)
+    .help("Direct lobe counts to evaluate, comma-separated (e.g. 1,2,3): each experiment is baked and scored once per count")))]
 pub struct Args {
     /// Scene descriptions (JSON). Default: the method's own experiments, from --examples
     /// (hybrid: teapot_table.json; sg: sg_spot.json and sg_shadowed_highlight.json).
@@ -62,6 +70,15 @@ pub struct Args {
     /// The shared data folder (default probes of --method hybrid); default: $RELIGHT_SHARED.
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// SG: also compute the error budget of every bake (each approximation of the frame in
+    /// turn, docs/RESULTS.md §8; renders a direct-lighting reference for experiments with
+    /// interreflections).
+    #[arg(long)]
+    pub budget: bool,
+    /// SG: run only these of the default experiments (comma-separated names, e.g.
+    /// `fig3-4_conductor,teapot_dawn_conductor`).
+    #[arg(long, value_delimiter = ',')]
+    pub experiments: Vec<String>,
     /// Hybrid options.
     #[command(flatten)]
     pub hybrid: HybridSettings,
@@ -103,6 +120,30 @@ fn print(a: &Args, out: &Out) -> Result<()> {
     Ok(())
 }
 
+/// The direct lobe counts of `--direct-lobes` (a list in `relight eval`, see [`Args`]), each
+/// checked against the bake's range.
+fn direct_lobes(m: &ArgMatches) -> Result<Vec<usize>> {
+    let lobes: Vec<usize> = m
+        .get_many::<usize>("direct_lobes")
+        .map(|v| v.copied().collect())
+        .unwrap_or_default();
+    for &l in &lobes {
+        ensure!(
+            (1..=relight_bake::sg::MAX_LOBES).contains(&l),
+            "--direct-lobes {l} is not in 1..={}",
+            relight_bake::sg::MAX_LOBES
+        );
+    }
+    let mut seen = lobes.clone();
+    seen.sort_unstable();
+    seen.dedup();
+    ensure!(
+        seen.len() == lobes.len(),
+        "--direct-lobes lists a count twice"
+    );
+    Ok(lobes)
+}
+
 /// Run `relight eval`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     use EvalMethod::*;
@@ -114,6 +155,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Hybrid], named(&["reference_spp", "data"])),
             (&[Hybrid], arg_names::<HybridSettings>()),
             (&[Sg], arg_names::<SgBakeSettings>()),
+            (&[Sg], named(&["budget", "experiments"])),
             (&[Sh, Hybrid, Sg], named(&["width", "spp", "examples"])),
         ],
     )?;
@@ -125,6 +167,10 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     if let Some(w) = a.width {
         ensure!((8..=8192).contains(&w), "--width {w} is not in 8..=8192");
     }
+    ensure!(
+        a.experiments.is_empty() || a.scenes.is_empty(),
+        "--experiments selects default experiments; scene files make their own"
+    );
     let orders = |default: &str| args::orders(a.sh_orders.as_deref().unwrap_or(default));
     match a.method {
         Sh => {
@@ -172,15 +218,18 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 blend: None,
             };
             let experiments = if a.scenes.is_empty() {
-                example(&a, "sg_spot.json")?;
-                example(&a, "sg_shadowed_highlight.json")?;
-                sg::default_experiments(&a.examples)
+                for s in sg::DEFAULT_SCENES {
+                    example(&a, s)?;
+                }
+                sg::select_experiments(sg::default_experiments(&a.examples), &a.experiments)?
             } else {
                 sg::scene_experiments(&a.scenes, &settings)
             };
             sg::run(&sg::SgEval {
                 experiments,
                 settings,
+                lobes: direct_lobes(m)?,
+                budget: a.budget,
                 spp: a.spp,
                 width: a.width,
                 out: a.out.clone(),

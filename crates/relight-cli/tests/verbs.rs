@@ -117,6 +117,8 @@ fn options_of_other_methods_are_refused() {
     bake(&flat, &b);
     let never = d.join("never.relight");
     let img = d.join("never.png");
+    let never_eval = d.join("never-eval");
+    let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
     for (args, want, out) in [
         (
             vec![
@@ -175,6 +177,32 @@ fn options_of_other_methods_are_refused() {
             vec!["render", s(&b), "-o", s(&img), "--sh-order", "9"],
             "SH order 9",
             &img,
+        ),
+        (
+            vec![
+                "eval",
+                "-o",
+                s(&never_eval),
+                "--experiments",
+                "fig3-4_conductor",
+            ],
+            "--experiments applies to --method sg",
+            &never_eval,
+        ),
+        (
+            vec![
+                "eval",
+                "--method",
+                "sg",
+                "--examples",
+                s(&examples),
+                "-o",
+                s(&never_eval),
+                "--experiments",
+                "fig3-4_conductor,no_such_experiment",
+            ],
+            "unknown experiment \"no_such_experiment\" (known: fig3-4_conductor,",
+            &never_eval,
         ),
     ] {
         let o = relight(&args);

@@ -16,6 +16,13 @@
 //!   visibility matters (the two renders differ by more than 10 % of the reference's mean
 //!   luminance), where the baseline shows the highlights the occluder blocks.
 //!
+//! * **Lobe counts** (issue 10): every experiment is baked and scored once per direct lobe
+//!   count of [`SgEval::lobes`] (`relight eval --method sg --direct-lobes 1,2,3`) against the
+//!   same reference, and a second table lists the relative RMSE per lobe count: more lobes
+//!   must never be worse.
+//! * **Error budget** ([`budget`], `--budget`): per experiment and lobe count, the error of
+//!   each approximation of the frame in turn.
+//!
 //! Metrics are over the pixels fully covered by geometry (as `--method sh`); the Mitsuba
 //! reference is the mean of two seeds, and half their difference its own noise.
 
@@ -25,12 +32,16 @@ use glam::Vec3;
 use relight_method::sg::{Sg, SgSettings};
 use relight_method::{Baked, FrameOptions, FrameSettings};
 use relight_render::compare::{self, Metrics};
+use relight_render::raster::RasterOptions;
+use relight_render::shade_sg::{SgLighting, SgRenderer, ShadeOptions};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
 use relight_scene::material::Material;
 use relight_scene::scene::Scene;
 use relight_scene::scene_file::SceneDesc;
 use std::fmt::Write as _;
+
+pub mod budget;
 use std::path::{Path, PathBuf};
 
 /// One experiment: a scene, an optional material override, which components are baked.
@@ -57,8 +68,17 @@ pub const PLASTIC: Material = Material::GgxPlastic {
     ior: 1.49,
 };
 
-/// Fig. 3-4 (conductor and plastic on Spot) and Fig. 3-5 (the shadowed highlight), from the
-/// example scenes in `examples` (the repository's `examples/` folder).
+/// The example scenes [`default_experiments`] reads.
+pub const DEFAULT_SCENES: [&str; 3] = [
+    "sg_spot.json",
+    "sg_shadowed_highlight.json",
+    "sg_teapot_dawn.json",
+];
+
+/// Fig. 3-4 (conductor and plastic on Spot), Fig. 3-5 (the shadowed highlight) and a glossy
+/// GGX conductor (alpha 0.2) teapot under an outdoor probe (Poly Haven's Kiara 1 Dawn,
+/// direct lighting; issue 10's case), from the example scenes in `examples` (the
+/// repository's `examples/` folder).
 pub fn default_experiments(examples: &Path) -> Vec<Experiment> {
     let ex = |name: &str, file: &str, material, indirect, baseline| Experiment {
         name: name.into(),
@@ -83,7 +103,33 @@ pub fn default_experiments(examples: &Path) -> Vec<Experiment> {
             false,
             true,
         ),
+        ex(
+            "teapot_dawn_conductor",
+            "sg_teapot_dawn.json",
+            None,
+            false,
+            false,
+        ),
     ]
+}
+
+/// The experiments of `all` named in `names` (all of them if `names` is empty), in `all`'s
+/// order.
+///
+/// # Errors
+/// [`crate::EvalError::Options`] naming an unknown experiment and the known ones.
+pub fn select_experiments(all: Vec<Experiment>, names: &[String]) -> Result<Vec<Experiment>> {
+    if let Some(bad) = names.iter().find(|n| !all.iter().any(|e| &e.name == *n)) {
+        let known: Vec<&str> = all.iter().map(|e| e.name.as_str()).collect();
+        return Err(crate::EvalError::Options(format!(
+            "unknown experiment {bad:?} (known: {})",
+            known.join(", ")
+        )));
+    }
+    Ok(all
+        .into_iter()
+        .filter(|e| names.is_empty() || names.contains(&e.name))
+        .collect())
 }
 
 /// Experiments of user-given scenes: indirect as the settings say, with the baseline.
@@ -105,8 +151,13 @@ pub fn scene_experiments(scenes: &[PathBuf], settings: &SgSettings) -> Vec<Exper
 pub struct SgEval {
     /// The experiments.
     pub experiments: Vec<Experiment>,
-    /// The bake's settings (the indirect lobes are dropped where an experiment has none).
+    /// The bake's settings (the indirect lobes are dropped where an experiment has none;
+    /// the direct lobes are each of `lobes` in turn).
     pub settings: SgSettings,
+    /// Direct lobe counts to bake and score each experiment with (at least one).
+    pub lobes: Vec<usize>,
+    /// Also compute the error budget ([`budget`]) of every bake.
+    pub budget: bool,
     /// Mitsuba samples per pixel per seed.
     pub spp: u32,
     /// Image width (the height keeps the camera's aspect).
@@ -120,6 +171,10 @@ pub struct SgEval {
 pub struct Row {
     /// Experiment name.
     pub experiment: String,
+    /// Direct lobes of the bake.
+    pub direct_lobes: usize,
+    /// Indirect lobes of the bake (0: no indirect component).
+    pub indirect_lobes: usize,
     /// Mesh vertices.
     pub vertices: usize,
     /// Bake wall time.
@@ -136,6 +191,10 @@ pub struct Row {
     pub mitsuba_max_depth: i32,
     /// Relative RMSE of SG against Mitsuba.
     pub rel_rmse: f64,
+    /// Relative RMSE of the same bake rendered with the thesis' interpolation
+    /// ([`ShadeOptions::PAPER`]: linear parameters, slot `k` with slot `k`), the frame before
+    /// issue 10.
+    pub rel_rmse_paper_blend: f64,
     /// Mean absolute luminance error.
     pub mean_abs_lum_err: f64,
     /// The reference's own relative noise.
@@ -157,13 +216,29 @@ pub struct Row {
 /// # Errors
 /// Missing Mitsuba, unreadable inputs, bake, render or write failures.
 pub fn run(e: &SgEval) -> Result<Vec<Row>> {
+    if e.lobes.is_empty() {
+        return Err(crate::EvalError::Options(
+            "no direct lobe count to evaluate".into(),
+        ));
+    }
     let python = mitsuba_python()?;
     output::create_dir(&e.out)?;
     let mut rows = Vec::new();
+    let mut budget = Vec::new();
     for ex in &e.experiments {
-        rows.push(run_one(e, ex, &python)?);
+        run_one(e, ex, &python, &mut rows, &mut budget)?;
     }
-    output::results(&e.out, &table(&rows, e), &rows)?;
+    let mut md = table(&rows, e);
+    if e.lobes.len() > 1 {
+        md.push_str(&lobe_table(&rows, &e.lobes));
+    }
+    if e.budget {
+        md.push_str(&budget_table(&budget));
+        let json = serde_json::to_string_pretty(&budget)
+            .map_err(|x| crate::EvalError::Options(format!("cannot write budget.json: {x}")))?;
+        relight_bundle::write_atomic(&e.out.join("budget.json"), json.as_bytes())?;
+    }
+    output::results(&e.out, &md, &rows)?;
     Ok(rows)
 }
 
@@ -187,7 +262,15 @@ fn bake_and_render(
     Ok((baked, out.image, ms))
 }
 
-fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
+/// Bakes, renders and scores experiment `ex` once per lobe count, appending its rows (and
+/// budget rows).
+fn run_one(
+    e: &SgEval,
+    ex: &Experiment,
+    python: &Path,
+    rows: &mut Vec<Row>,
+    budget_rows: &mut Vec<budget::BudgetRow>,
+) -> Result<()> {
     let desc = with_width(SceneDesc::read(&ex.scene)?, e.width);
     let mut scene = desc.build(&ex.scene)?;
     if let Some(m) = ex.material {
@@ -198,12 +281,6 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
         settings.bake.indirect_lobes = 0;
     }
     let dir = e.out.join(&ex.name);
-    eprintln!(
-        "eval sg: {}: baking {} vertices",
-        ex.name,
-        scene.mesh.vertex_count()
-    );
-    let (baked, img, frame_ms) = bake_and_render(&desc, &scene, &ex.scene, &settings)?;
     let depth = if settings.bake.indirect_lobes > 0 {
         2 + settings.bake.max_depth as i32
     } else {
@@ -216,25 +293,122 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
     let tm = ToneMap::Exponential {
         gamma: 1.0 / mean_y.max(1e-6) as f32,
     };
-    let m: Metrics = compare::metrics(&img, &r.mean, Some(&mask));
     let scale = 0.25 * mean_y as f32;
     output::image_set(&dir, "mitsuba", &r.mean, None, &tm, scale)?;
-    output::image_set(&dir, "sg", &img, Some(&r.mean), &tm, scale)?;
-    let Baked::Sg(sg) = &baked else {
-        unreachable!("an sg bake")
+    for &lobes in &e.lobes {
+        settings.bake.direct_lobes = lobes;
+        eprintln!(
+            "eval sg: {}: baking {} vertices, {lobes} direct lobes",
+            ex.name,
+            scene.mesh.vertex_count()
+        );
+        let (baked, img, frame_ms) = bake_and_render(&desc, &scene, &ex.scene, &settings)?;
+        let m: Metrics = compare::metrics(&img, &r.mean, Some(&mask));
+        output::image_set(
+            &dir,
+            &format!("sg_l{lobes}"),
+            &img,
+            Some(&r.mean),
+            &tm,
+            scale,
+        )?;
+        let Baked::Sg(sg) = &baked else {
+            unreachable!("an sg bake")
+        };
+        let row = score(
+            e,
+            ex,
+            &settings,
+            &desc,
+            &scene,
+            (sg, &img, frame_ms),
+            &r,
+            &mask,
+        )?;
+        let paper = paper_blend(sg, &scene);
+        output::image_set(
+            &dir,
+            &format!("sg_l{lobes}_paper_blend"),
+            &paper,
+            Some(&r.mean),
+            &tm,
+            scale,
+        )?;
+        rows.push(Row {
+            mitsuba_max_depth: depth,
+            rel_rmse: m.rel_rmse,
+            rel_rmse_paper_blend: compare::metrics(&paper, &r.mean, Some(&mask)).rel_rmse,
+            mean_abs_lum_err: m.mean_abs_lum_err,
+            ..row
+        });
+        if e.budget {
+            budget_rows.extend(budget::run(&budget::BudgetInput {
+                experiment: &ex.name,
+                scene: &scene,
+                baked: sg,
+                dir: &dir,
+                python,
+                spp: e.spp,
+                direct_reference: (depth == 2).then_some(&r.mean),
+                mask: &mask,
+                shade: Default::default(),
+            })?);
+        }
+    }
+    Ok(())
+}
+
+/// The frame of `sg` (as [`bake_and_render`] renders it: 4 x 4 supersampled, a 128-texel
+/// prefiltered chain) with the thesis' interpolation, [`ShadeOptions::PAPER`].
+fn paper_blend(sg: &relight_method::sg::SgBaked, scene: &Scene) -> Image {
+    let lighting = SgLighting::new(&scene.env, sg.bake.diffuse.order, 128);
+    SgRenderer::new(&scene.mesh, &sg.bake)
+        .with_options(ShadeOptions::PAPER)
+        .render(
+            &lighting,
+            &scene.camera,
+            None,
+            &RasterOptions { supersample: 4 },
+        )
+        .0
+        .image
+}
+
+/// The row of one bake (`sg`, its render `img` and frame time) against reference `r`,
+/// with the no-visibility baseline if the experiment has one.
+#[allow(clippy::too_many_arguments)]
+fn score(
+    e: &SgEval,
+    ex: &Experiment,
+    settings: &SgSettings,
+    desc: &SceneDesc,
+    scene: &Scene,
+    (sg, img, frame_ms): (&relight_method::sg::SgBaked, &Image, f64),
+    r: &crate::reference::Reference,
+    mask: &[bool],
+) -> Result<Row> {
+    let dir = e.out.join(&ex.name);
+    let lobes = settings.bake.direct_lobes;
+    let mean_y = mean_lum(&r.mean, mask);
+    let tm = ToneMap::Exponential {
+        gamma: 1.0 / mean_y.max(1e-6) as f32,
     };
+    let scale = 0.25 * mean_y as f32;
     let s = &sg.bake.stats;
     let mut row = Row {
         experiment: ex.name.clone(),
+        direct_lobes: lobes,
+        indirect_lobes: settings.bake.indirect_lobes,
         vertices: scene.mesh.vertex_count(),
         bake_seconds: sg.record.seconds,
         frame_ms,
         fit_error_direct: s.mean_relative_error[0],
         flips: s.flips,
         flips_after_relaxation: s.flips_after_relaxation,
-        mitsuba_max_depth: depth,
-        rel_rmse: m.rel_rmse,
-        mean_abs_lum_err: m.mean_abs_lum_err,
+        mitsuba_max_depth: 0,
+        rel_rmse: 0.0,
+        rel_rmse_paper_blend: 0.0,
+        mean_abs_lum_err: 0.0,
         reference_noise: r.noise,
         baseline_rel_rmse: None,
         shadowed_pixels: None,
@@ -243,12 +417,19 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
         mean_lum_shadowed: None,
     };
     if ex.baseline {
-        let mut o = settings;
+        let mut o = *settings;
         o.bake.visibility = false;
         eprintln!("eval sg: {}: baking the no-visibility baseline", ex.name);
-        let (_, bimg, _) = bake_and_render(&desc, &scene, &ex.scene, &o)?;
-        output::image_set(&dir, "envmap", &bimg, Some(&r.mean), &tm, scale)?;
-        let mb = compare::metrics(&bimg, &r.mean, Some(&mask));
+        let (_, bimg, _) = bake_and_render(desc, scene, &ex.scene, &o)?;
+        output::image_set(
+            &dir,
+            &format!("envmap_l{lobes}"),
+            &bimg,
+            Some(&r.mean),
+            &tm,
+            scale,
+        )?;
+        let mb = compare::metrics(&bimg, &r.mean, Some(mask));
         // Where visibility matters: the two bakes differ by over 10 % of the mean luminance.
         let region: Vec<bool> = (0..mask.len())
             .map(|i| {
@@ -261,11 +442,11 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
         row.shadowed_pixels = Some(n);
         if n > 0 {
             let there = |i: &Image| compare::metrics(i, &r.mean, Some(&region)).rel_rmse;
-            row.sg_rel_rmse_shadowed = Some(there(&img));
+            row.sg_rel_rmse_shadowed = Some(there(img));
             row.baseline_rel_rmse_shadowed = Some(there(&bimg));
             row.mean_lum_shadowed = Some([
                 mean_lum(&r.mean, &region),
-                mean_lum(&img, &region),
+                mean_lum(img, &region),
                 mean_lum(&bimg, &region),
             ]);
         }
@@ -276,21 +457,23 @@ fn run_one(e: &SgEval, ex: &Experiment, python: &Path) -> Result<Row> {
 fn table(rows: &[Row], e: &SgEval) -> String {
     let s = &e.settings.bake;
     let mut md = String::new();
+    let lobes: Vec<String> = e.lobes.iter().map(|l| l.to_string()).collect();
     let _ = writeln!(
         md,
         "SG (Green 2005) against Mitsuba 3, {} spp x 2 seeds; {} direct + {} indirect lobes, \
-         direct 6x{}x{}, indirect 6x{}x{}, diffuse SH order {}\n",
+         direct 6x{}x{}, indirect 6x{}x{} ({} paths), diffuse SH order {}\n",
         e.spp,
-        s.direct_lobes,
+        lobes.join(","),
         s.indirect_lobes,
         s.direct_res,
         s.direct_res,
         s.indirect_res,
         s.indirect_res,
+        s.indirect_paths,
         s.diffuse_order
     );
     md.push_str(
-        "| experiment | vertices | bake s | frame ms | fit error | flips (after relax.) | Mitsuba max_depth | rel. RMSE SG | reference noise | rel. RMSE no-visibility | shadowed px | rel. RMSE there: SG / no-vis. | mean lum. there: ref / SG / no-vis. |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| experiment | lobes | vertices | bake s | frame ms | fit error | flips (after relax.) | Mitsuba max_depth | rel. RMSE SG | reference noise | rel. RMSE no-visibility | shadowed px | rel. RMSE there: SG / no-vis. | mean lum. there: ref / SG / no-vis. |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let lum = r
@@ -299,8 +482,10 @@ fn table(rows: &[Row], e: &SgEval) -> String {
             .unwrap_or_else(|| "-".into());
         let _ = writeln!(
             md,
-            "| {} | {} | {:.1} | {:.1} | {:.3} | {} ({}) | {} | {:.1} % | {:.1} % | {} | {} | {} / {} | {} |",
+            "| {} | {} + {} | {} | {:.1} | {:.1} | {:.3} | {} ({}) | {} | {:.1} % | {:.1} % | {} | {} | {} / {} | {} |",
             r.experiment,
+            r.direct_lobes,
+            r.indirect_lobes,
             r.vertices,
             r.bake_seconds,
             r.frame_ms,
@@ -315,6 +500,59 @@ fn table(rows: &[Row], e: &SgEval) -> String {
             output::pct(r.sg_rel_rmse_shadowed),
             output::pct(r.baseline_rel_rmse_shadowed),
             lum
+        );
+    }
+    md
+}
+
+/// Relative RMSE per experiment (rows) and direct lobe count (columns), with the
+/// reference's noise: more lobes must not be worse (issue 10).
+fn lobe_table(rows: &[Row], lobes: &[usize]) -> String {
+    let mut md = String::from(
+        "\nRelative RMSE against Mitsuba by direct lobe count: the frame / the same bake with the thesis' interpolation (linear parameters, no lobe matching)\n\n| experiment | reference noise |",
+    );
+    for l in lobes {
+        let _ = write!(md, " {l} lobe{} |", if *l == 1 { "" } else { "s" });
+    }
+    md.push_str("\n|---|---|");
+    md.push_str(&"---|".repeat(lobes.len()));
+    md.push('\n');
+    let mut names: Vec<&str> = rows.iter().map(|r| r.experiment.as_str()).collect();
+    names.dedup();
+    for name in names {
+        let of = |l: usize| {
+            rows.iter()
+                .find(|r| r.experiment == name && r.direct_lobes == l)
+        };
+        let noise = of(lobes[0]).map_or(0.0, |r| r.reference_noise);
+        let _ = write!(md, "| {name} | {:.1} % |", 100.0 * noise);
+        for &l in lobes {
+            let _ = write!(
+                md,
+                " {} / {} |",
+                output::pct(of(l).map(|r| r.rel_rmse)),
+                output::pct(of(l).map(|r| r.rel_rmse_paper_blend))
+            );
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The error budget rows (module docs of [`budget`]) as a table.
+fn budget_table(rows: &[budget::BudgetRow]) -> String {
+    let mut md = String::from(
+        "\nError budget (direct glossy; 4 x 4 samples per pixel; against Mitsuba at max_depth 2)\n\n| experiment | lobes | row | rel. RMSE | mean abs. lum. error |\n|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.1} % | {:.4} |",
+            r.experiment,
+            r.lobes,
+            r.row,
+            100.0 * r.rel_rmse,
+            r.mean_abs_lum_err
         );
     }
     md

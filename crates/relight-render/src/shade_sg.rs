@@ -5,7 +5,7 @@
 //! 1. **Per vertex** ([`SgRenderer::prepare`], parallel): the view `v = normalize(eye - x)` is
 //!    located on the view icosahedron ([`Icosphere::locate`]: triangle and spherical-cone
 //!    barycentrics `b`, `sum b = 1`), and the lobes `k` of its three views are blended
-//!    ([`blend3`]). The diffuse part `rho_x k_view(n_x . v) sum_i T_x,i L_i` is the SH dot
+//!    (Conventions below). The diffuse part `rho_x k_view(n_x . v) sum_i T_x,i L_i` is the SH dot
 //!    product of the bake's mono transfer with the world-frame SH of the environment
 //!    ([`crate::shade_sh::vertex_radiance`]) times the albedo and the material's view-side
 //!    factor (`Material::diffuse_factors`).
@@ -23,14 +23,19 @@
 //!   frame (`Environment::env_from_world`), so the prefiltered chain is built once per map
 //!   and a runtime rotation only re-rotates the SH of the diffuse part. Rotating a blend is
 //!   the same as blending rotated axes (rotation is linear and keeps lengths).
-//! * Blending (views and pixels alike): axes are summed with the weights and renormalised
-//!   (the paper's "normalising mean directions"); amplitudes and sharpnesses are blended
-//!   **linearly**. Linear sharpness is deliberate: for sharp lobes the integral is
-//!   `~ 2 pi a / lambda`, and `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
-//!   `a_j / lambda_j` (weights `w_j lambda_j`), so a blended lobe never carries more energy
-//!   than its brightest corner; blending `ln lambda` overshoots by up to
-//!   `(lambda_1 + lambda_2) / (2 sqrt(lambda_1 lambda_2))` between two lobes of equal energy.
-//!   It is also what the paper's vertex program does with its interpolated `mean_var`.
+//! * Blending (views and pixels alike, [`ShadeOptions`]): by default (issue 10) lobes are
+//!   blended by **energy** ([`blend3_energy`]: the blend's integral `a int G` is the
+//!   barycentric mean of the corners', axis and sharpness weighted by each corner's energy)
+//!   after **matching** each corner's lobes to one reference corner's ([`match_corners`]:
+//!   the thesis' correspondence, section 2.2.2 and the flipping of section 3.4, enforced at
+//!   render time). [`ShadeOptions::PAPER`] is the thesis' blend (section 2.3): axes summed
+//!   and renormalised, amplitudes and sharpnesses **linear**, slot `k` with slot `k`
+//!   ([`blend3`]). Its energy `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
+//!   `a_j / lambda_j` (weights `w_j lambda_j`), dominated by the sharpest corner: a broad
+//!   lobe blended with a sharp lobe of little energy (another Gaussian in the same slot)
+//!   keeps almost none of its energy, and a sharp lobe blended with a switched-off broad one
+//!   keeps almost all of it. With two lobes whose slots swap between neighbours that lost 17 % of the
+//!   teapot-dawn conductor's light and tripled its error (docs/RESULTS.md §8).
 //! * Radiance: `L(w) = scale * map(env_from_world w)`, as `Environment::radiance`.
 //! * Back-facing vertices keep the lobes of their view: the bake clamps views below the
 //!   horizon (see `relight_bake::sg`), so silhouettes stay continuous. The diffuse view
@@ -65,28 +70,11 @@ use relight_sphere::sh;
 use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
+mod blend;
+pub use blend::{blend3, blend3_energy, blend3_with, match_corners, LobeBlend};
+
 /// Vertices per parallel work item of the per-vertex pass.
 const CHUNK: usize = 1024;
-
-/// Blend three lobes with weights `w` (summing to 1): axes summed and renormalised,
-/// sharpness and amplitude linear (module docs). If the axes cancel, the axis of the
-/// heaviest corner is kept.
-#[inline]
-pub fn blend3(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
-    let axis = l[0].axis * w[0] + l[1].axis * w[1] + l[2].axis * w[2];
-    let heaviest = if w[0] >= w[1] && w[0] >= w[2] {
-        0
-    } else if w[1] >= w[2] {
-        1
-    } else {
-        2
-    };
-    SgLobe {
-        axis: axis.try_normalize().unwrap_or(l[heaviest].axis),
-        sharpness: l[0].sharpness * w[0] + l[1].sharpness * w[1] + l[2].sharpness * w[2],
-        amplitude: l[0].amplitude * w[0] + l[1].amplitude * w[1] + l[2].amplitude * w[2],
-    }
-}
 
 /// `int exp(lambda (mu . w - 1)) dw = 2 pi (1 - exp(-2 lambda)) / lambda` in f32 (the same
 /// as `relight_sphere::sg::unit_integral`, which works in f64; beyond `lambda = 9`,
@@ -160,6 +148,49 @@ pub fn prefilter_parallel(cube: &EnvMap, levels: &[PrefilterLevel]) -> Prefilter
     PrefilteredEnv::from_levels(levels.to_vec(), data)
 }
 
+/// The shape of the prefiltered chain of an SG frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChainOptions {
+    /// Face size of the finest level (a power of two; capped at the source's).
+    pub face_size: usize,
+    /// Levels per octave of `sigma` (1: [`default_levels`]).
+    pub levels_per_octave: usize,
+    /// Texels per `sigma` at a face centre (a face is 2 units wide in its tangent plane, so
+    /// texel pitch `2 / n`): level `k` has face size `texels_per_sigma * 2 / sigma_k`
+    /// rounded up to a power of two, within `1..=face_size` (1: [`default_levels`]).
+    pub texels_per_sigma: f32,
+}
+
+impl Default for ChainOptions {
+    /// [`default_levels`] of a 128-texel finest level: one level per octave, `n_k = 2 / sigma_k`.
+    fn default() -> Self {
+        ChainOptions {
+            face_size: 128,
+            levels_per_octave: 1,
+            texels_per_sigma: 1.0,
+        }
+    }
+}
+
+/// The levels of a chain of base face size `n` (the sharpest level has `sigma = 2 / n`, as
+/// [`default_levels`]) down to `sigma = 2` radians, `per_octave` levels per octave of
+/// `sigma`, each level's face size `texels_per_sigma * 2 / sigma` rounded up to a power of
+/// two and capped at `n`. `(1, 1.0)` is [`default_levels`].
+pub fn chain_levels(n: usize, per_octave: usize, texels_per_sigma: f32) -> Vec<PrefilterLevel> {
+    let per_octave = per_octave.max(1);
+    let octaves = n.trailing_zeros() as usize;
+    (0..=octaves * per_octave)
+        .map(|j| {
+            let sigma = 2.0 / n as f32 * 2f32.powf(j as f32 / per_octave as f32);
+            let want = (texels_per_sigma * 2.0 / sigma).ceil().max(1.0) as usize;
+            PrefilterLevel {
+                lambda: 1.0 / (sigma * sigma),
+                size: want.next_power_of_two().min(n),
+            }
+        })
+        .collect()
+}
+
 /// The lighting of an SG frame: the environment's Gaussian-prefiltered chain (map frame,
 /// built once per map), its SH for the diffuse part, and the runtime rotation and scale.
 #[derive(Clone, Debug)]
@@ -189,11 +220,32 @@ impl SgLighting {
     /// # Panics
     /// If `face_size` is not a power of two or `sh_order` is outside `1..=sh::MAX_ORDER`.
     pub fn new(env: &Environment, sh_order: usize, face_size: usize) -> SgLighting {
+        SgLighting::with_chain(
+            env,
+            sh_order,
+            &ChainOptions {
+                face_size,
+                ..ChainOptions::default()
+            },
+        )
+    }
+
+    /// [`SgLighting::new`] with the chain of `chain` ([`chain_levels`]).
+    ///
+    /// # Panics
+    /// If the face size is not a power of two or `sh_order` is outside `1..=sh::MAX_ORDER`.
+    pub fn with_chain(env: &Environment, sh_order: usize, chain: &ChainOptions) -> SgLighting {
+        let face_size = chain.face_size;
         assert!(face_size.is_power_of_two(), "face size {face_size}");
         let src = source_face_size(&env.map);
         let cube = to_cube(&env.map, src);
         let n = face_size.min(src);
-        let levels = default_levels(n, n.trailing_zeros() as usize + 1);
+        let levels = chain_levels(n, chain.levels_per_octave, chain.texels_per_sigma);
+        debug_assert!(
+            chain.levels_per_octave != 1
+                || chain.texels_per_sigma != 1.0
+                || levels == default_levels(n, n.trailing_zeros() as usize + 1)
+        );
         let pre = prefilter_parallel(&cube, &levels);
         let map_sh = sh::project_env(&env.map, sh_order);
         SgLighting::from_parts(pre, map_sh, sh_order, env)
@@ -330,11 +382,42 @@ pub struct SgTimes {
     pub pixel_ms: f64,
 }
 
+/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]). The default (issue
+/// 10, chosen by the figures of docs/RESULTS.md §8) blends energies and matches lobes;
+/// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShadeOptions {
+    /// The blend of the three views and of the three corners of a triangle.
+    pub blend: LobeBlend,
+    /// Permute each corner's lobes to the reference corner's before blending (two or more
+    /// lobes per component).
+    pub match_lobes: bool,
+}
+
+impl ShadeOptions {
+    /// The thesis' interpolation (section 2.3): linear parameters, slot `k` with slot `k`.
+    pub const PAPER: ShadeOptions = ShadeOptions {
+        blend: LobeBlend::Linear,
+        match_lobes: false,
+    };
+}
+
+impl Default for ShadeOptions {
+    /// Energy blend and lobe matching (type docs).
+    fn default() -> Self {
+        ShadeOptions {
+            blend: LobeBlend::Energy,
+            match_lobes: true,
+        }
+    }
+}
+
 /// Renders an [`SgBake`] of a mesh (module docs).
 #[derive(Clone, Debug)]
 pub struct SgRenderer<'a> {
     mesh: &'a TriMesh,
     bake: &'a SgBake,
+    options: ShadeOptions,
     views: Icosphere,
     /// Diffuse albedo of each vertex's material.
     albedo: Vec<Vec3>,
@@ -381,11 +464,30 @@ impl<'a> SgRenderer<'a> {
         SgRenderer {
             mesh,
             bake,
+            options: ShadeOptions::default(),
             views,
             albedo,
             view_tables,
             view_index,
         }
+    }
+
+    /// The renderer with interpolation `options`.
+    pub fn with_options(self, options: ShadeOptions) -> Self {
+        SgRenderer { options, ..self }
+    }
+
+    /// The interpolation options.
+    pub fn options(&self) -> ShadeOptions {
+        self.options
+    }
+
+    /// The components' lobe counts: direct, then indirect (0 without).
+    fn component_lobes(&self) -> [usize; 2] {
+        [
+            self.bake.direct.lobe_count,
+            self.bake.indirect.as_ref().map_or(0, |l| l.lobe_count),
+        ]
     }
 
     /// The view icosahedron.
@@ -411,12 +513,31 @@ impl<'a> SgRenderer<'a> {
         let [j0, j1, j2] = self.views.triangles()[t].map(|j| j as usize);
         let mut o = out.iter_mut();
         for lobes in std::iter::once(&self.bake.direct).chain(self.bake.indirect.as_ref()) {
-            let (l0, l1, l2) = (lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2));
+            let l = [lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2)];
+            let p = self.permutations([j0, j1, j2], l);
             for k in 0..lobes.lobe_count {
-                *o.next().expect("out holds lobe_count lobes") =
-                    blend3([&l0[k], &l1[k], &l2[k]], b);
+                *o.next().expect("out holds lobe_count lobes") = blend3_with(
+                    self.options.blend,
+                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
+                    b,
+                );
             }
         }
+    }
+
+    /// Per corner, the permutation of its lobes that matches the corner of lowest `id`
+    /// (identities when matching is off or there is one lobe).
+    #[inline]
+    fn permutations(&self, id: [usize; 3], l: [&[SgLobe]; 3]) -> [[u8; blend::MAX_MATCH]; 3] {
+        let identity = std::array::from_fn(|k| k as u8);
+        let mut p = [identity; 3];
+        if self.options.match_lobes && l[0].len() > 1 {
+            let r = (0..3).min_by_key(|&c| id[c]).unwrap_or(0);
+            for c in (0..3).filter(|&c| c != r) {
+                p[c] = match_corners(l[r], l[c]);
+            }
+        }
+        p
     }
 
     /// The per-vertex pass for an eye at `eye` (world) under `lighting`.
@@ -469,14 +590,23 @@ impl<'a> SgRenderer<'a> {
     #[inline]
     fn shade(&self, frame: &SgFrame, f: &Fragment, integrate: impl Fn(&SgLobe) -> Vec3) -> Vec3 {
         let n = frame.lobe_count;
-        let [a, b, c] = self.mesh.indices[f.tri as usize].map(|i| i as usize * n);
+        let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
-        for k in 0..n {
-            let l = &frame.lobes;
-            let lobe = blend3([&l[a + k], &l[b + k], &l[c + k]], f.bary);
-            if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
-                sum += integrate(&lobe);
+        let mut start = 0;
+        for count in self.component_lobes() {
+            let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);
+            let p = self.permutations(id, l);
+            for k in 0..count {
+                let lobe = blend3_with(
+                    self.options.blend,
+                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
+                    f.bary,
+                );
+                if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
+                    sum += integrate(&lobe);
+                }
             }
+            start += count;
         }
         sum
     }
@@ -504,6 +634,29 @@ impl<'a> SgRenderer<'a> {
         (img, times)
     }
 
+    /// Deferred per-pixel shading of `frame` (from [`SgRenderer::prepare`], or built by hand
+    /// with lobes per vertex in the map frame) with `integrate` for each blended lobe: the
+    /// second pass of [`SgRenderer::render`] with any integrator (the error budget swaps the
+    /// prefiltered fetch for a finer one, and the bake's lobes for exact-view fits).
+    ///
+    /// # Panics
+    /// If `frame` does not hold `lobe_count` lobes and one diffuse value per vertex.
+    pub fn render_frame(
+        &self,
+        frame: &SgFrame,
+        camera: &Camera,
+        opts: &RasterOptions,
+        integrate: impl Fn(&SgLobe) -> Vec3 + Sync,
+    ) -> Rendered {
+        let vc = self.mesh.vertex_count();
+        assert_eq!(frame.lobe_count, self.lobe_count(), "lobes per vertex");
+        assert_eq!(frame.lobes.len(), vc * frame.lobe_count, "lobes per vertex");
+        assert_eq!(frame.diffuse.len(), vc, "diffuse per vertex");
+        raster::render_deferred(self.mesh, camera, None, opts, |f| {
+            self.shade(frame, f, &integrate)
+        })
+    }
+
     /// The slow reference of [`SgRenderer::render`]: the same blended lobes, each integrated
     /// numerically against every texel of `env.map` with its exact solid angle
     /// (`relight_sphere::sg::integrate_with_env`), times `env.scale`. `O(texels)` per lobe and
@@ -517,11 +670,8 @@ impl<'a> SgRenderer<'a> {
         opts: &RasterOptions,
     ) -> Rendered {
         let frame = self.prepare(lighting, Vec3::from(camera.origin));
-        raster::render_deferred(self.mesh, camera, None, opts, |f| {
-            self.shade(&frame, f, |l| {
-                relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map)
-                    * env.scale
-            })
+        self.render_frame(&frame, camera, opts, |l| {
+            relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map) * env.scale
         })
     }
 }
@@ -576,3 +726,6 @@ fn view_factor(table: &[f32; VIEW_TABLE], cos_i: f32) -> f32 {
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod lobe_tests;

@@ -90,7 +90,7 @@ mod graph;
 pub mod target;
 mod vertex;
 
-pub use vertex::{ComponentFit, VertexFit};
+pub use vertex::{fit_alone, ComponentFit, VertexFit};
 
 use super::transport::{TransportSource, VertexTransport};
 use super::{SgFitSettings, SgFitStats, SgLobes, VIEW_FREQUENCY};

@@ -30,6 +30,9 @@ impl Default for SgFitSettings {
             width_weight: 0.01,
             spatial_weight: 0.01,
             relax_sweeps: 0,
+            energy_weight: 0.0,
+            fit_start: super::FitStart::default(),
+            lobe_order: super::LobeOrder::default(),
             regions: 0,
             energy: true,
         }
@@ -56,6 +59,7 @@ impl SgFitSettings {
             ("fit.mean_weight", self.mean_weight),
             ("fit.width_weight", self.width_weight),
             ("fit.spatial_weight", self.spatial_weight),
+            ("fit.energy_weight", self.energy_weight),
         ] {
             if !(w.is_finite() && w >= 0.0) {
                 return err(format!("{name} {w} must be finite and non-negative"));

@@ -363,7 +363,12 @@ impl<'a> TransportContext<'a> {
     /// Visibility of the direct cube map from vertex `x`: the unoccluded texels above both
     /// horizons, with their directions in the shading frame.
     fn visible_texels(&self, x: usize, frame: &Frame) -> Vec<(u32, Vec3)> {
-        let (p, ng, n) = (self.mesh.positions[x], self.ng[x], frame.n);
+        self.visible_texels_at(self.mesh.positions[x], self.ng[x], frame)
+    }
+
+    /// [`Self::visible_texels`] of any surface point `p` with geometric normal `ng`.
+    fn visible_texels_at(&self, p: Vec3, ng: Vec3, frame: &Frame) -> Vec<(u32, Vec3)> {
+        let n = frame.n;
         let texels: Vec<u32> = (0..self.direct.dirs.len() as u32)
             .filter(|&i| {
                 let w = self.direct.dirs[i as usize];
@@ -384,6 +389,59 @@ impl<'a> TransportContext<'a> {
             .filter(|(_, &o)| !o)
             .map(|(&i, _)| (i, frame.to_local(self.direct.dirs[i as usize])))
             .collect()
+    }
+
+    /// The direct glossy transport of one view `view` (world, unit, towards the viewer) at
+    /// any surface point `p` with shading normal `n`, geometric normal `ng` and material `m`,
+    /// into `out` (`6 direct_res^2` texels): what [`TransportSource::compute`] tabulates for a
+    /// vertex and one of the 92 views, for an arbitrary point and view (the view clamped to
+    /// `horizon_deg` as there). Used by the error budget of the evaluation (the per-pixel and
+    /// exact-view rows of docs/RESULTS.md §8). A degenerate normal gives zeros.
+    ///
+    /// # Panics
+    /// If `out.len() != 6 direct_res^2`.
+    pub fn direct_at(
+        &self,
+        p: Vec3,
+        n: Vec3,
+        ng: Vec3,
+        m: &Material,
+        view: Vec3,
+        out: &mut [Vec3],
+    ) {
+        assert_eq!(out.len(), self.direct.len(), "one direct cube map");
+        let (Some(n), Some(ng)) = (n.try_normalize(), ng.try_normalize()) else {
+            out.fill(Vec3::ZERO);
+            return;
+        };
+        if m.is_diffuse_only() {
+            out.fill(Vec3::ZERO);
+            return;
+        }
+        let frame = Frame::from_normal(n);
+        let visible = self.visible_texels_at(p, ng, &frame);
+        let mut kernel = GlossyKernel::new(m, &visible, self.direct.len());
+        let (d, _) = self.clamp_view(n, view);
+        kernel.eval_view(frame.to_local(d), out);
+    }
+
+    /// Texel directions (world, unit) and exact solid angles of the direct cube map.
+    pub fn direct_texels(&self) -> (&[Vec3], &[f32]) {
+        (&self.direct.dirs, &self.direct.solid_angle)
+    }
+
+    /// The direction view `view` of vertex `x` is tabulated for (the exact direction, or the
+    /// direction clamped `horizon_deg` above the shading horizon).
+    pub fn clamped_view(&self, x: usize, view: Vec3) -> Vec3 {
+        match self.normal(x) {
+            Some(n) => self.clamp_view(n, view).0,
+            None => view,
+        }
+    }
+
+    /// The area-weighted geometric normal of vertex `x` (ray offsets, geometric horizon).
+    pub fn geometric_normal(&self, x: usize) -> Vec3 {
+        self.ng[x]
     }
 
     /// Diffuse SH transfer: `(1/pi) sum_w y_i(w) V(w) cos(w) k(cos w) dA(w)` over the visible

@@ -5,6 +5,7 @@ use super::target::{group, CubeTables};
 use super::vertex::{fit_vertex, match_to, ComponentFit, VertexInput};
 use super::*;
 use crate::sg::transport::{TransportSource, VertexTransport};
+use crate::sg::{FitStart, LobeOrder};
 use glam::Vec3;
 use relight_sphere::sg::{eval_mixture, unit_integral};
 use relight_sphere::sg_fit::{self, FitOptions};
@@ -80,6 +81,9 @@ fn config(lobes: usize) -> FitConfig {
             width_weight: 0.01,
             spatial_weight: 0.01,
             relax_sweeps: 1,
+            energy_weight: 0.0,
+            fit_start: FitStart::Neighbour,
+            lobe_order: LobeOrder::Joint,
             regions: 0,
             // The recovery tests check the least-squares fit itself.
             energy: false,

@@ -8,7 +8,9 @@ use crate::sg::SgFitSettings;
 use glam::Vec3;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::{unit_integral, SgLobe};
-use relight_sphere::sg_fit::{self, Arrangement, FitOptions, PriorWeights};
+use relight_sphere::sg_fit::{self, Arrangement, EnergyTarget, FitOptions, PriorWeights};
+
+use crate::sg::{FitStart, LobeOrder};
 
 /// A warm start whose fit leaves more than this relative L2 error is checked against a greedy
 /// fit from scratch (the warm start may sit in another basin, e.g. across a shadow boundary).
@@ -237,7 +239,9 @@ pub fn fit_vertex(c: &ComponentFit, input: &VertexInput) -> VertexFit {
                 .map(|&u| &out.lobes[u * n..(u + 1) * n])
                 .collect();
             let prior = (!nb.is_empty()).then(|| average(&nb, n));
-            let warm: Option<Vec<SgLobe>> = if first {
+            let warm: Option<Vec<SgLobe>> = if first && c.settings.fit_start == FitStart::Greedy {
+                None
+            } else if first {
                 input
                     .warm
                     .map(|w| w[v * n..(v + 1) * n].to_vec())
@@ -283,7 +287,8 @@ fn view_order(c: &ComponentFit, targets: &[Option<ViewTarget>]) -> Vec<usize> {
 
 /// Fits one view: returns its lobes (matched to the prior, or else to the warm start), the
 /// relative L2 error and the iterations spent. Only in the `first` sweep of a flood fill is
-/// a poor warm start checked against a greedy fit.
+/// a poor warm start checked against a greedy fit. The lobe order ([`LobeOrder`]) decides
+/// how `N >= 2` lobes are found in that sweep.
 fn fit_view(
     c: &ComponentFit,
     t: &ViewTarget,
@@ -293,6 +298,142 @@ fn fit_view(
     first: bool,
 ) -> (Vec<SgLobe>, f64, usize) {
     let n = c.lobes;
+    let nested = c.settings.lobe_order == LobeOrder::Nested && n > 1;
+    let (mut lobes, err, it) = if nested && first {
+        fit_nested(c, t, warm, prior, spatial)
+    } else if nested {
+        // Later sweeps refine all lobes together and keep the order of the warm start (the
+        // vertex's own nested fit, or the consensus of its neighbours in a relaxation).
+        let reference = warm.clone();
+        let (l, e, it) = solve_view(c, n, t, warm, prior, spatial, false);
+        match reference {
+            Some(r) if t.norm2 > 0.0 => (permuted(&l, &match_to(&l, &r)), e, it),
+            _ => (l, e, it),
+        }
+    } else {
+        solve_view(c, n, t, warm, prior, spatial, first)
+    };
+    if t.norm2 > 0.0 {
+        preserve_energy(&mut lobes, t, c.opts.lambda_max);
+        if c.settings.energy {
+            conserve_energy(&mut lobes, t);
+        }
+    }
+    (lobes, err, it)
+}
+
+/// The first `k` lobes of each `n`-lobe set in `sets` (consecutive).
+fn first_of(sets: &[SgLobe], n: usize, k: usize) -> Vec<SgLobe> {
+    sets.chunks_exact(n)
+        .flat_map(|s| s[..k].iter().copied())
+        .collect()
+}
+
+/// [`LobeOrder::Nested`] in the flood fill's first sweep: one lobe as [`solve_view`] fits it
+/// (warm start, prior and neighbours of slot 0), then for `k = 2..N` a lobe on the residual
+/// of the `k - 1` ([`sg_fit::residual_lobe`]) and a joint refinement of the `k` with the
+/// coherence terms of the first `k` slots; after each step the first `k - 1` slots are
+/// matched to the previous step's lobes, so slot `k` is always the `k`-th lobe found.
+fn fit_nested(
+    c: &ComponentFit,
+    t: &ViewTarget,
+    warm: Option<Vec<SgLobe>>,
+    prior: Option<Vec<SgLobe>>,
+    spatial: &[SgLobe],
+) -> (Vec<SgLobe>, f64, usize) {
+    let n = c.lobes;
+    let head = |l: &Option<Vec<SgLobe>>, k: usize| l.as_ref().map(|v| v[..k].to_vec());
+    let (mut cur, mut err, mut iterations) = solve_view(
+        c,
+        1,
+        t,
+        head(&warm, 1),
+        head(&prior, 1),
+        &first_of(spatial, n, 1),
+        true,
+    );
+    if t.norm2 <= 0.0 {
+        // No data: every slot takes the prior's (or the warm start's) shape, zero amplitude.
+        let (l, e, it) = solve_view(c, n, t, warm, prior, spatial, true);
+        return (l, e, it);
+    }
+    let opts = weighted_options(c, t);
+    for k in 2..=n {
+        let mut start = cur.clone();
+        start.push(sg_fit::residual_lobe(&t.target, &cur, &opts));
+        let start = clamp_sharpness(&start, &opts);
+        let sp = first_of(spatial, n, k);
+        let arr = Arrangement {
+            weight: c.settings.spatial_weight * t.norm2,
+            neighbours: &sp,
+        };
+        let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
+        let f = sg_fit::refine_arranged(&t.target, &start, &opts, head(&prior, k).as_deref(), arr);
+        iterations += f.iterations;
+        err = f.relative_error;
+        // Slots 1..k-1 keep the previous step's lobes (best assignment), slot k the new one.
+        let mut cost = vec![0f32; k * k];
+        for (slot, p) in cur.iter().enumerate() {
+            for (j, l) in f.lobes.iter().enumerate() {
+                cost[slot * k + j] = lobe_distance(p, l);
+            }
+        }
+        cur = permuted(&f.lobes, &best_assignment(&cost, k));
+    }
+    (cur, err, iterations)
+}
+
+/// The solver options of a view: coherence weights relative to its data energy.
+fn weighted_options(c: &ComponentFit, t: &ViewTarget) -> FitOptions {
+    let s = &c.settings;
+    FitOptions {
+        prior_weights: PriorWeights {
+            mean: s.mean_weight * t.norm2,
+            width: s.width_weight * t.norm2,
+        },
+        energy: energy_target(c, t),
+        ..c.opts
+    }
+}
+
+/// The energy term of a view (`SgFitSettings::energy_weight`, relative to its data energy
+/// and integral), if on and the view has a non-zero integral.
+fn energy_target(c: &ComponentFit, t: &ViewTarget) -> Option<EnergyTarget> {
+    let e2 = t.integral.length_squared() as f64;
+    (c.settings.energy_weight > 0.0 && e2 > 0.0 && t.norm2 > 0.0).then(|| EnergyTarget {
+        weight: c.settings.energy_weight * t.norm2 / e2,
+        integral: [
+            t.integral.x as f64,
+            t.integral.y as f64,
+            t.integral.z as f64,
+        ],
+    })
+}
+
+/// `l` with every sharpness clamped to the solver's bounds.
+fn clamp_sharpness(l: &[SgLobe], opts: &FitOptions) -> Vec<SgLobe> {
+    l.iter()
+        .map(|g| SgLobe {
+            sharpness: g.sharpness.clamp(opts.lambda_min, opts.lambda_max),
+            ..*g
+        })
+        .collect()
+}
+
+/// Fits `n` lobes to one view from the warm start (all `n` refined together, the paper's
+/// fit), with the coherence terms; returns the least-squares lobes (matched to the prior, or
+/// else to the warm start, and to the spatial neighbours), the relative L2 error and the
+/// iterations. Only in the `first` sweep of a flood fill is a poor warm start checked
+/// against a greedy fit.
+fn solve_view(
+    c: &ComponentFit,
+    n: usize,
+    t: &ViewTarget,
+    warm: Option<Vec<SgLobe>>,
+    prior: Option<Vec<SgLobe>>,
+    spatial: &[SgLobe],
+    first: bool,
+) -> (Vec<SgLobe>, f64, usize) {
     let reference = prior.clone().or_else(|| warm.clone());
     // Lobes are matched to the prior (or warm start) and to every spatial neighbour at once.
     let references: Vec<&[SgLobe]> = reference
@@ -311,30 +452,22 @@ fn fit_view(
     }
     // Weights relative to the view's data energy, so they do not depend on its brightness.
     let s = &c.settings;
-    let opts = FitOptions {
-        prior_weights: PriorWeights {
-            mean: s.mean_weight * t.norm2,
-            width: s.width_weight * t.norm2,
-        },
-        ..c.opts
-    };
+    let opts = weighted_options(c, t);
     let arr = Arrangement {
         weight: s.spatial_weight * t.norm2,
         neighbours: spatial,
     };
     let arr = (!spatial.is_empty() && s.spatial_weight > 0.0).then_some(&arr);
-    let clamp = |l: &[SgLobe]| -> Vec<SgLobe> {
-        l.iter()
-            .map(|g| SgLobe {
-                sharpness: g.sharpness.clamp(opts.lambda_min, opts.lambda_max),
-                ..*g
-            })
-            .collect()
-    };
     let mut iterations = 0;
     let mut best = None;
     if let Some(w) = &warm {
-        let f = sg_fit::refine_arranged(&t.target, &clamp(w), &opts, prior.as_deref(), arr);
+        let f = sg_fit::refine_arranged(
+            &t.target,
+            &clamp_sharpness(w, &opts),
+            &opts,
+            prior.as_deref(),
+            arr,
+        );
         iterations += f.iterations;
         best = Some(f);
     }
@@ -343,7 +476,7 @@ fn fit_view(
             && (f.relative_error > RETRY_ERROR || f.lobes.iter().all(|g| g.amplitude == Vec3::ZERO))
     });
     if retry {
-        let g = sg_fit::fit(&t.target, n, &c.opts, None);
+        let g = sg_fit::fit(&t.target, n, &opts, None);
         iterations += g.iterations;
         let g = match &reference {
             // Match the fresh fit to the neighbours, then let the coherence terms act.
@@ -363,16 +496,34 @@ fn fit_view(
         }
     }
     let f = best.expect("a warm start or a greedy fit");
-    let mut lobes = if references.is_empty() {
+    let lobes = if references.is_empty() {
         f.lobes
     } else {
         permuted(&f.lobes, &match_to_all(&f.lobes, &references))
     };
-    preserve_energy(&mut lobes, t, opts.lambda_max);
-    if s.energy {
-        conserve_energy(&mut lobes, t);
-    }
     (lobes, f.relative_error, iterations)
+}
+
+/// Fits one view's data (`6 n^2` texels) on its own: the greedy fit of `sg_fit::fit` with no
+/// coherence term, then the same energy handling as the flood fill. Returns the lobes and
+/// the relative L2 error. The reference the flood fill is measured against in the error
+/// budget (per-pixel and exact-view rows of docs/RESULTS.md §8).
+pub fn fit_alone(c: &ComponentFit, data: &[Vec3]) -> (Vec<SgLobe>, f64) {
+    let t = group(&c.tables, data);
+    if t.norm2 <= 0.0 {
+        return (vec![c.default_lobe(); c.lobes], 0.0);
+    }
+    let opts = FitOptions {
+        energy: energy_target(c, &t),
+        ..c.opts
+    };
+    let f = sg_fit::fit(&t.target, c.lobes, &opts, None);
+    let mut lobes = f.lobes;
+    preserve_energy(&mut lobes, &t, c.opts.lambda_max);
+    if c.settings.energy {
+        conserve_energy(&mut lobes, &t);
+    }
+    (lobes, f.relative_error)
 }
 
 /// Rescale the amplitudes, per channel, so that the mixture's integral over the sphere equals
