@@ -19,6 +19,7 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(obj ply gltf hdr exr scene bundle)
 flags=(--sanitizer none -O --debug-assertions)
+python3 make_seeds.py   # the binary seeds (meshes, HDR, EXR) are generated, not committed
 cargo fuzz build "${flags[@]}" >/dev/null
 echo "| target | seconds | executions | exec/s | coverage (edges) | features | corpus | findings |"
 echo "|---|---|---|---|---|---|---|---|"
