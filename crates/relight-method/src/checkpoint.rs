@@ -77,23 +77,26 @@ where
                 found.len()
             )));
         }
-        let scene = BakedScene::of(&input).fingerprint()?;
-        for (i, count, path) in found {
-            if count != n {
+        // Chunks of another scene are refused before any baking; the final merge checks
+        // every chunk (settings, seed, scene), so one is read here, not each twice.
+        if let Some((_, _, path)) = found.first() {
+            let b = read_any(path)?;
+            if b.scene().fingerprint()? != BakedScene::of(&input).fingerprint()? {
                 return Err(MethodError::Merge {
-                    path,
+                    path: path.clone(),
                     message: format!(
-                        "is chunk {i} of {count}, but this bake makes {n} chunks (another --checkpoint-vertices?): delete {} to start again",
+                        "was baked from another scene: delete {} to start again",
                         dir.display()
                     ),
                 });
             }
-            let b = read_any(&path)?;
-            if b.scene().fingerprint()? != scene {
+        }
+        for (i, count, path) in found {
+            if count != n || i >= n {
                 return Err(MethodError::Merge {
                     path,
                     message: format!(
-                        "was baked from another scene: delete {} to start again",
+                        "is chunk {i} of {count}, but this bake makes {n} chunks (another --checkpoint-vertices?): delete {} to start again",
                         dir.display()
                     ),
                 });

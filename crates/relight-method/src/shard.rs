@@ -129,20 +129,20 @@ where
     let Some(s0) = first.record().shard else {
         return Err(err(&first_path, "is not a part of a sharded bake".into()));
     };
+    // What every other part must share with the first (its scene's bytes, taken once).
+    let kind0 = first.kind();
+    let settings0 = first.settings_json();
+    let (backend0, f16_0) = (first.record().backend.clone(), first.record().f16);
     let scene0 = first.scene().fingerprint()?;
     let v = first.scene().mesh.vertex_count();
     // slot[i]: part i's path and rows (its scene dropped, but for the first part's).
     let mut slot: Vec<Option<(PathBuf, Baked)>> = (0..s0.count).map(|_| None).collect();
-    let mut first = Some(first);
     let mut scene = None;
-    loop {
-        let (path, mut b) = match first.take() {
-            Some(f) => (first_path.clone(), f),
-            None => match parts.next() {
-                Some(p) => p?,
-                None => break,
-            },
-        };
+    for (nth, part) in std::iter::once(Ok((first_path.clone(), first)))
+        .chain(parts)
+        .enumerate()
+    {
+        let (path, mut b) = part?;
         let r = b.record();
         let Some(s) = r.shard else {
             return Err(err(&path, "is not a part of a sharded bake".into()));
@@ -166,20 +166,19 @@ where
                 ),
             ));
         }
-        if let Some(f) = slot.iter().flatten().next().map(|(_, f)| f) {
-            if b.kind() != f.kind() {
+        if nth > 0 {
+            if b.kind() != kind0 {
                 return Err(differs("method"));
             }
-            if b.settings_json() != f.settings_json() {
+            if b.settings_json() != settings0 {
                 return Err(differs("settings (or seed)"));
             }
-            let fr = f.record();
-            if (&r.backend, r.f16) != (&fr.backend, fr.f16) {
+            if (&r.backend, r.f16) != (&backend0, f16_0) {
                 return Err(differs("back-end or storage precision"));
             }
-        }
-        if b.scene().fingerprint()? != scene0 {
-            return Err(differs("scene"));
+            if b.scene().fingerprint()? != scene0 {
+                return Err(differs("scene"));
+            }
         }
         let want = s.range(v);
         if r.range.unwrap_or((0, v)) != (want.start, want.end) {
