@@ -98,6 +98,48 @@ pub struct SgBake {
     pub stats: SgFitStats,
 }
 
+impl SgBake {
+    /// A bake of `mesh` made of given functions instead of a fit (tests and benchmarks of the
+    /// frame): direct lobe `k` of vertex `x` (normal `n`) at view `v` (the views of
+    /// [`VIEW_FREQUENCY`]) is `lobe(x, n, v, k)`, the diffuse transfer of order `order` is
+    /// `diffuse(n)` (`order^2` values), one material everywhere, no indirect lobes.
+    pub fn from_fn(
+        mesh: &relight_scene::mesh::TriMesh,
+        lobes: usize,
+        lobe: impl Fn(usize, glam::Vec3, glam::Vec3, usize) -> SgLobe,
+        order: usize,
+        diffuse: impl Fn(glam::Vec3) -> Vec<f32>,
+        material: Material,
+    ) -> SgBake {
+        let views = relight_sphere::icosphere::Icosphere::new(VIEW_FREQUENCY);
+        let vc = mesh.vertex_count();
+        let mut data = Vec::with_capacity(vc * views.vertices().len() * lobes);
+        for (x, n) in mesh.normals.iter().enumerate() {
+            for v in views.vertices() {
+                data.extend((0..lobes).map(|k| lobe(x, *n, *v, k)));
+            }
+        }
+        SgBake {
+            view_frequency: VIEW_FREQUENCY,
+            direct: SgLobes {
+                lobe_count: lobes,
+                view_count: views.vertices().len(),
+                lobes: data,
+            },
+            indirect: None,
+            diffuse: ShTransfer {
+                order,
+                kind: crate::sh::ShTransferKind::Shadowed,
+                vertex_count: vc,
+                channels: 1,
+                data: mesh.normals.iter().flat_map(|n| diffuse(*n)).collect(),
+            },
+            materials: vec![material; vc],
+            stats: SgFitStats::default(),
+        }
+    }
+}
+
 /// How the fit finds `N >= 2` lobes per (vertex, view) in the flood fill (issue 10; the
 /// measurements are in docs/RESULTS.md §8).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

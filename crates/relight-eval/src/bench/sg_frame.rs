@@ -13,7 +13,6 @@ use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
 use relight_sphere::envmap::EnvMap;
-use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sh;
 use serde_json::json;
@@ -50,57 +49,32 @@ pub struct SgFrameBench {
 /// per view, `lobes` lobes about the mirror direction of the view (sharpness 20 to 500),
 /// order-5 diffuse transfer `y_i(n)` (smooth, not physical), GGX plastic.
 pub fn synthetic_sphere_bake(rings: u32, lobes: usize) -> (TriMesh, SgBake) {
-    use relight_bake::sg::{SgFitStats, SgLobes, VIEW_FREQUENCY};
-    use relight_bake::sh::{ShTransfer, ShTransferKind};
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, rings, 2 * rings);
-    let views = Icosphere::new(VIEW_FREQUENCY);
-    let nv = views.vertices().len();
-    let mut data = Vec::with_capacity(mesh.vertex_count() * nv * lobes);
-    for (x, n) in mesh.normals.iter().enumerate() {
-        for v in views.vertices() {
-            let r = (2.0 * n.dot(*v) * *n - *v).normalize_or(*n);
-            for k in 0..lobes {
-                data.push(SgLobe {
-                    axis: (r + 0.2 * k as f32 * n.any_orthonormal_vector()).normalize(),
-                    sharpness: 20.0 + 480.0 * ((x * 7 + k * 3) % 11) as f32 / 10.0,
-                    amplitude: Vec3::new(1.0, 0.8, 0.6) * (10.0 / (1 + k) as f32),
-                });
-            }
-        }
-    }
     let order = 5;
-    let n2 = sh::sh_count(order);
-    let mut diffuse = vec![0.0; mesh.vertex_count() * n2];
-    for (x, n) in mesh.normals.iter().enumerate() {
-        sh::eval_sh(order, *n, &mut diffuse[x * n2..(x + 1) * n2]);
-    }
-    let vc = mesh.vertex_count();
-    let bake = SgBake {
-        view_frequency: VIEW_FREQUENCY,
-        direct: SgLobes {
-            lobe_count: lobes,
-            view_count: nv,
-            lobes: data,
+    let bake = SgBake::from_fn(
+        &mesh,
+        lobes,
+        |x, n, v, k| {
+            let r = (2.0 * n.dot(v) * n - v).normalize_or(n);
+            SgLobe {
+                axis: (r + 0.2 * k as f32 * n.any_orthonormal_vector()).normalize(),
+                sharpness: 20.0 + 480.0 * ((x * 7 + k * 3) % 11) as f32 / 10.0,
+                amplitude: Vec3::new(1.0, 0.8, 0.6) * (10.0 / (1 + k) as f32),
+            }
         },
-        indirect: None,
-        diffuse: ShTransfer {
-            order,
-            kind: ShTransferKind::Shadowed,
-            vertex_count: vc,
-            channels: 1,
-            data: diffuse,
+        order,
+        |n| {
+            let mut y = vec![0.0; sh::sh_count(order)];
+            sh::eval_sh(order, n, &mut y);
+            y
         },
-        materials: vec![
-            Material::GgxPlastic {
-                diffuse: Vec3::splat(0.5),
-                specular: Vec3::ONE,
-                alpha: 0.1,
-                ior: 1.49
-            };
-            vc
-        ],
-        stats: SgFitStats::default(),
-    };
+        Material::GgxPlastic {
+            diffuse: Vec3::splat(0.5),
+            specular: Vec3::ONE,
+            alpha: 0.1,
+            ior: 1.49,
+        },
+    );
     (mesh, bake)
 }
 

@@ -1,53 +1,12 @@
 //! Tests of `shade_sg`: the fast path against closed forms and against numerical integration.
 
 use super::*;
-use relight_bake::sg::{SgFitStats, SgLobes, VIEW_FREQUENCY};
-use relight_bake::sh::{ShTransfer, ShTransferKind};
+use relight_bake::sg::VIEW_FREQUENCY;
 use relight_sphere::warp::Rng;
 
 /// A 16 x 16 camera looking at the unit sphere (which covers about half of the image).
 fn camera(w: u32) -> Camera {
     Camera::look_at([0.3, 0.5, 3.2], [0.0, 0.0, 0.0], 40.0, w, w)
-}
-
-/// A bake of `mesh` whose lobe `k` at vertex `x` (normal `n`) and view `v` is `f(x, n, v, k)`,
-/// with diffuse transfer `diffuse(n)` (`order^2` values) and one material everywhere.
-fn bake_from_fn(
-    mesh: &TriMesh,
-    lobes: usize,
-    f: impl Fn(usize, Vec3, Vec3, usize) -> SgLobe,
-    order: usize,
-    diffuse: impl Fn(Vec3) -> Vec<f32>,
-    material: Material,
-) -> SgBake {
-    let views = Icosphere::new(VIEW_FREQUENCY);
-    let mut data = vec![];
-    for (x, n) in mesh.normals.iter().enumerate() {
-        for v in views.vertices() {
-            for k in 0..lobes {
-                data.push(f(x, *n, *v, k));
-            }
-        }
-    }
-    let vc = mesh.vertex_count();
-    SgBake {
-        view_frequency: VIEW_FREQUENCY,
-        direct: SgLobes {
-            lobe_count: lobes,
-            view_count: views.vertices().len(),
-            lobes: data,
-        },
-        indirect: None,
-        diffuse: ShTransfer {
-            order,
-            kind: ShTransferKind::Shadowed,
-            vertex_count: vc,
-            channels: 1,
-            data: mesh.normals.iter().flat_map(|n| diffuse(*n)).collect(),
-        },
-        materials: vec![material; vc],
-        stats: SgFitStats::default(),
-    }
 }
 
 fn reflect(v: Vec3, n: Vec3) -> Vec3 {
@@ -83,7 +42,7 @@ fn constant_environment_gives_the_sum_of_lobe_integrals() {
     // Random axes per (vertex, view, lobe), the same sharpness and amplitude everywhere:
     // the expected radiance is the same at every pixel whatever the interpolation does.
     let views_per_vertex = 92;
-    let bake = bake_from_fn(
+    let bake = SgBake::from_fn(
         &mesh,
         2,
         |x, _, v, k| {
@@ -129,7 +88,7 @@ fn constant_environment_gives_the_sum_of_lobe_integrals() {
 fn fast_path_matches_numerical_integration() {
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 12, 24);
     // One lobe per view about the view's mirror direction, sharpness varying over the mesh.
-    let bake = bake_from_fn(
+    let bake = SgBake::from_fn(
         &mesh,
         1,
         |x, n, v, _| {
@@ -177,7 +136,7 @@ fn view_interpolation_reproduces_a_lobe_rotating_with_the_view() {
     // normalize(sum b_j v_j) = v, so blending the mirror axes of the three views gives the
     // mirror axis of v itself, up to rounding.
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 4, 8);
-    let bake = bake_from_fn(
+    let bake = SgBake::from_fn(
         &mesh,
         1,
         |_, n, v, _| SgLobe::new(reflect(v, n), 100.0, Vec3::ONE),
@@ -245,7 +204,7 @@ fn wavy_lobe(x: usize, v: Vec3) -> SgLobe {
 #[test]
 fn view_blend_is_continuous_across_icosahedron_edges() {
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 3, 6);
-    let bake = bake_from_fn(
+    let bake = SgBake::from_fn(
         &mesh,
         1,
         |x, _, v, _| wavy_lobe(x, v),
@@ -301,7 +260,7 @@ fn view_blend_is_continuous_across_icosahedron_edges() {
 #[test]
 fn rotating_the_environment_equals_rotating_the_map() {
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 10, 20);
-    let bake = bake_from_fn(
+    let bake = SgBake::from_fn(
         &mesh,
         1,
         |x, n, v, _| {
