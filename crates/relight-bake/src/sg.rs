@@ -32,7 +32,7 @@
 
 pub mod fit;
 mod settings;
-pub use settings::MAX_LOBES;
+pub use settings::{MAX_LOBES, MAX_REGIONS};
 pub mod transport;
 
 use relight_scene::material::Material;
@@ -313,6 +313,147 @@ pub fn bake(
     caster: &dyn relight_scene::accel::RayCaster,
     settings: &SgBakeSettings,
 ) -> Result<SgBake, crate::BakeError> {
+    let (ctx, vm) = context(mesh, materials, vertex_materials, caster, settings)?;
+    let progress =
+        crate::transport::progress_bar(settings.progress, mesh.vertex_count() as u64, "sg bake");
+    let fitted = crate::transport::with_threads(settings.threads, || {
+        fit::fit_mesh(&ctx, &mesh.indices, &fit_config(settings), &progress)
+    })?;
+    progress.finish_and_clear();
+    Ok(assemble(settings, mesh.vertex_count(), fitted, vm))
+}
+
+/// The flood-fill regions of `mesh` under `settings` ([`fit::RegionPlan`]): the unit that a
+/// sharded bake splits.
+pub fn region_plan(
+    mesh: &relight_scene::mesh::TriMesh,
+    settings: &SgBakeSettings,
+) -> fit::RegionPlan {
+    fit::RegionPlan::new(mesh.vertex_count(), &mesh.indices, &settings.fit)
+}
+
+/// Part of an SG bake: the fits of the vertices of some flood-fill regions, before the regions
+/// are aligned ([`fit::PartFit`]), with those vertices' materials (same order).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SgPart {
+    /// The fits, rows in ascending vertex order.
+    pub fit: fit::PartFit,
+    /// The material of each vertex of `fit.vertices`.
+    pub materials: Vec<Material>,
+}
+
+/// Bake the regions `regions` of `plan` (which must be [`region_plan`] of the same mesh and
+/// settings): what one part of a sharded bake runs. [`finish_parts`] turns the parts into the
+/// bake [`bake`] would have made, bit for bit.
+///
+/// # Errors
+/// As [`bake`], and [`crate::BakeError::Settings`] when relaxation is asked (it refits
+/// vertices across region borders after the fill, so it needs the whole mesh) or the
+/// regions are out of range.
+pub fn bake_regions(
+    mesh: &relight_scene::mesh::TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &dyn relight_scene::accel::RayCaster,
+    settings: &SgBakeSettings,
+    plan: &fit::RegionPlan,
+    regions: std::ops::Range<usize>,
+) -> Result<SgPart, crate::BakeError> {
+    if settings.fit.relax_sweeps > 0 {
+        return Err(crate::BakeError::Settings(format!(
+            "an sg bake with {} relaxation sweeps cannot be split: relaxation refits vertices across region borders after the whole fill (use --relax-sweeps 0)",
+            settings.fit.relax_sweeps
+        )));
+    }
+    if regions.start > regions.end || regions.end > plan.region_count() {
+        return Err(crate::BakeError::Settings(format!(
+            "regions {regions:?} are not inside the mesh's {} flood-fill regions",
+            plan.region_count()
+        )));
+    }
+    let (ctx, vm) = context(mesh, materials, vertex_materials, caster, settings)?;
+    let vertices = plan.vertices(regions.clone());
+    let progress =
+        crate::transport::progress_bar(settings.progress, vertices.len() as u64, "sg bake (part)");
+    let fit = crate::transport::with_threads(settings.threads, || {
+        fit::fit_regions(&ctx, plan, &fit_config(settings), regions, &progress)
+    })?;
+    progress.finish_and_clear();
+    debug_assert_eq!(fit.vertices, vertices);
+    let materials = fit.vertices.iter().map(|&x| vm[x as usize]).collect();
+    Ok(SgPart { fit, materials })
+}
+
+/// The whole bake from parts that together hold every vertex of `mesh` once (each from
+/// [`bake_regions`] with the same `settings`): regions aligned, flips counted, statistics
+/// computed, exactly as [`bake`] does after its fill.
+///
+/// # Errors
+/// [`crate::BakeError::Settings`] naming what does not fit: a vertex in two parts or in
+/// none, parts of different layouts, or relaxation asked.
+pub fn finish_parts(
+    mesh: &relight_scene::mesh::TriMesh,
+    settings: &SgBakeSettings,
+    parts: Vec<SgPart>,
+) -> Result<SgBake, crate::BakeError> {
+    let bad = |m: String| crate::BakeError::Settings(format!("sg parts: {m}"));
+    if settings.fit.relax_sweeps > 0 {
+        return Err(bad("relaxation needs the whole mesh".into()));
+    }
+    let nv = mesh.vertex_count();
+    let mut materials: Vec<(u32, Material)> = parts
+        .iter()
+        .flat_map(|p| {
+            p.fit
+                .vertices
+                .iter()
+                .copied()
+                .zip(p.materials.iter().copied())
+        })
+        .collect();
+    materials.sort_unstable_by_key(|m| m.0);
+    let whole = fit::PartFit::join(parts.into_iter().map(|p| p.fit).collect()).map_err(bad)?;
+    if whole.vertices.len() != nv
+        || whole
+            .vertices
+            .iter()
+            .enumerate()
+            .any(|(i, &x)| x as usize != i)
+    {
+        return Err(bad(format!(
+            "they hold {} distinct vertices, not the mesh's {nv}",
+            whole.vertices.len()
+        )));
+    }
+    let plan = region_plan(mesh, settings);
+    let res = [
+        settings.direct_res,
+        if settings.indirect_lobes > 0 {
+            settings.indirect_res
+        } else {
+            0
+        },
+    ];
+    let fitted = fit::finish::<transport::TransportContext>(
+        &plan,
+        &fit_config(settings),
+        res,
+        whole,
+        None,
+        &indicatif::ProgressBar::hidden(),
+    );
+    let vm = materials.into_iter().map(|m| m.1).collect();
+    Ok(assemble(settings, nv, fitted, vm))
+}
+
+/// The transport of a bake and the material of each vertex.
+fn context<'a>(
+    mesh: &'a relight_scene::mesh::TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &'a dyn relight_scene::accel::RayCaster,
+    settings: &SgBakeSettings,
+) -> Result<(transport::TransportContext<'a>, Vec<Material>), crate::BakeError> {
     settings.validate()?;
     let vm = match vertex_materials {
         Some(v) => v.to_vec(),
@@ -322,35 +463,42 @@ pub fn bake(
         }
     };
     let ctx = transport::TransportContext::new(mesh, vm.clone(), caster, settings)?;
-    let config = fit::FitConfig {
+    Ok((ctx, vm))
+}
+
+fn fit_config(settings: &SgBakeSettings) -> fit::FitConfig {
+    fit::FitConfig {
         direct_lobes: settings.direct_lobes,
         indirect_lobes: settings.indirect_lobes,
         fit: settings.fit,
-    };
-    let progress =
-        crate::transport::progress_bar(settings.progress, mesh.vertex_count() as u64, "sg bake");
-    let fitted = crate::transport::with_threads(settings.threads, || {
-        fit::fit_mesh(&ctx, &mesh.indices, &config, &progress)
-    })?;
-    progress.finish_and_clear();
+    }
+}
+
+/// The bake from the fit of all `nv` vertices.
+fn assemble(
+    settings: &SgBakeSettings,
+    nv: usize,
+    fitted: fit::MeshFit,
+    vm: Vec<Material>,
+) -> SgBake {
     let order = (fitted.diffuse_stride as f64).sqrt().round() as usize;
-    debug_assert!(mesh.vertex_count() == 0 || order * order == fitted.diffuse_stride);
-    Ok(SgBake {
+    debug_assert!(nv == 0 || order * order == fitted.diffuse_stride);
+    SgBake {
         view_frequency: VIEW_FREQUENCY,
         direct: fitted.direct,
         indirect: fitted.indirect,
         diffuse: ShTransfer {
-            order: if mesh.vertex_count() == 0 {
+            order: if nv == 0 {
                 settings.diffuse_order
             } else {
                 order
             },
             kind: crate::sh::ShTransferKind::Shadowed,
-            vertex_count: mesh.vertex_count(),
+            vertex_count: nv,
             channels: 1,
             data: fitted.diffuse_sh,
         },
         materials: vm,
         stats: fitted.stats,
-    })
+    }
 }

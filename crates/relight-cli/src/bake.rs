@@ -122,9 +122,6 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
         } else {
             "--checkpoint-vertices"
         };
-        if a.method == MethodKind::Sg {
-            bail!("{opt}: sg bakes cannot be split (the flood fill couples neighbouring vertices, Green 2005 eq. 2.6); bake them whole");
-        }
         if a.sh.transfer == ShTransferKind::Interreflected {
             bail!("{opt}: interreflected transfer cannot be split (each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh); bake it whole, or split a shadowed bake");
         }
@@ -249,10 +246,15 @@ where
     let v = input.scene.mesh.vertex_count();
     Ok(match shard {
         Some(s) => {
-            let r = s.range(v);
+            let units = M::max_parts(input, settings);
+            let r = s.range(units);
             eprintln!(
-                "part {}/{}: vertices {}..{}",
-                s.index, s.count, r.start, r.end
+                "part {}/{}: units {}..{} of {units} (a unit is one {})",
+                s.index,
+                s.count,
+                r.start,
+                r.end,
+                M::PART_UNIT
             );
             bake_part::<M>(input, settings, s, ctx)?
         }

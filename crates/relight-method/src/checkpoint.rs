@@ -10,7 +10,8 @@
 //! * A rerun without `resume` that finds the folder refuses, saying what it holds; with
 //!   `resume`, chunks of another split or scene are refused by name (settings are checked by
 //!   the final merge). The folder is removed once the bundle is written.
-//! * What can be split can be checkpointed: `sh` with unshadowed or shadowed transfer.
+//! * What can be split can be checkpointed: `sh` with unshadowed or shadowed transfer (chunks
+//!   of vertices) and `sg` (chunks of flood-fill regions, so at most one chunk per region).
 
 use crate::shard::{bake_part, merge, Shard};
 use crate::{read_any, BakeContext, BakeInput, Baked, BakedScene, Method, MethodError};
@@ -63,9 +64,10 @@ where
     M::Baked: Into<Baked>,
 {
     let v = input.scene.mesh.vertex_count();
+    let most = M::max_parts(input, settings);
     let n = v
         .div_ceil(chunk_vertices.max(1))
-        .clamp(1, crate::shard::MAX_SHARDS.min(v.max(1)));
+        .clamp(1, crate::shard::MAX_SHARDS.min(most.max(1)));
     let dir = folder(out);
     let mut have = vec![None; n];
     if dir.exists() {

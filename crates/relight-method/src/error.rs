@@ -45,16 +45,12 @@ pub enum MethodError {
         method: MethodKind,
     },
     /// A part of a sharded bake cannot be rendered before it is merged.
-    #[error("{path}: is a part bundle (vertices {start}..{end} of {total}); merge the parts before rendering")]
+    #[error("{path}: is {part}; merge the parts before rendering")]
     PartialBake {
         /// The bundle.
         path: PathBuf,
-        /// First vertex.
-        start: usize,
-        /// One past the last vertex.
-        end: usize,
-        /// Vertices of the mesh.
-        total: usize,
+        /// Which part, and what it holds.
+        part: String,
     },
     /// The parts given to a merge do not make one whole bake (the message says why).
     #[error("{path}: {message}")]

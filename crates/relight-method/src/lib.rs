@@ -185,6 +185,32 @@ pub trait Method {
         ctx: &BakeContext,
     ) -> Result<Self::Baked, MethodError>;
 
+    /// What one unit of a sharded bake is ([`Method::max_parts`]), for messages.
+    const PART_UNIT: &'static str = "vertex";
+
+    /// Most parts a bake of `input` splits into (no part is empty): by default one per
+    /// vertex.
+    fn max_parts(input: BakeInput, settings: &Self::Settings) -> usize {
+        let _ = settings;
+        input.scene.mesh.vertex_count()
+    }
+
+    /// Bake part `shard` of `input` ([`crate::shard`]): by default the vertices
+    /// `shard.range(V)` through [`Method::bake`]. A method whose parts are not vertex ranges
+    /// overrides it.
+    ///
+    /// # Errors
+    /// As [`Method::bake`], and a part that cannot be made (the message says why).
+    fn bake_shard(
+        input: BakeInput,
+        settings: &Self::Settings,
+        shard: shard::Shard,
+        ctx: &BakeContext,
+    ) -> Result<Self::Baked, MethodError> {
+        let v = input.scene.mesh.vertex_count();
+        Self::bake(input, settings, shard.range(v), ctx)
+    }
+
     /// Write the baked data into a bundle (scene part, settings, record and tensors).
     ///
     /// # Errors

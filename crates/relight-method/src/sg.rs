@@ -9,10 +9,13 @@ mod store;
 pub use frame::{SgFrame, SgFrameSettings};
 pub use store::SG_LOBE_FLOATS;
 
+use crate::shard::Shard;
 use crate::store::{BakeRecord, BakedScene};
 use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError};
 use glam::Vec3;
-use relight_bake::sg::{self, SgBake, SgBakeSettings};
+use relight_bake::sg::fit::PartFit;
+use relight_bake::sg::{self, SgBake, SgBakeSettings, SgFitStats, SgLobes, SgPart};
+use relight_bake::sh::{ShTransfer, ShTransferKind};
 use relight_bundle::Bundle;
 use relight_scene::error::Invalid;
 use relight_scene::material::Material;
@@ -86,6 +89,20 @@ pub struct SgBaked {
     pub settings: SgSettings,
     /// How the bake ran.
     pub record: BakeRecord,
+    /// For a part of a sharded bake ([`crate::shard`]): which vertices `bake`'s rows are.
+    /// `None` for a whole bake.
+    pub part: Option<SgPartRows>,
+}
+
+/// What a part of a sharded `sg` bake holds besides its rows: which vertices they are (those
+/// of its flood-fill regions, ascending) and the fit errors the merge's statistics need.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SgPartRows {
+    /// The vertices of the rows, ascending.
+    pub vertices: Vec<u32>,
+    /// Per component (direct, then indirect): relative L2 error per row and view (negative:
+    /// no data).
+    pub errors: Vec<Vec<f32>>,
 }
 
 impl SgBaked {
@@ -121,10 +138,17 @@ impl SgBaked {
                 self.transfer_bytes_per_vertex(),
                 if self.record.f16 { "f16" } else { "f32" },
             ),
-            format!(
-                "fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
-                st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
-            ),
+            match &self.part {
+                None => format!(
+                    "fit: mean relative L2 error {:.4} direct, {:.4} indirect; {} LM iterations; flips {} -> {} after relaxation",
+                    st.mean_relative_error[0], st.mean_relative_error[1], st.iterations, st.flips, st.flips_after_relaxation
+                ),
+                Some(p) => format!(
+                    "fit of a part ({} vertices): {} LM iterations; errors and flips are counted by the merge",
+                    p.vertices.len(),
+                    st.iterations
+                ),
+            },
         ];
         let json = serde_json::json!({
             "views": k.direct.view_count,
@@ -151,9 +175,15 @@ impl SgBaked {
     }
 
     fn validate_msg(&self) -> Result<(), String> {
-        let v = self.scene.mesh.vertex_count();
         let k = &self.bake;
         let views = 10 * k.view_frequency * k.view_frequency + 2;
+        let v = match &self.part {
+            None => self.scene.mesh.vertex_count(),
+            Some(p) => {
+                p.validate(self.scene.mesh.vertex_count(), views, k.indirect.is_some())?;
+                p.vertices.len()
+            }
+        };
         let s = &self.settings.bake;
         let comps = [
             ("sg_direct", Some(&k.direct), s.direct_lobes),
@@ -240,6 +270,7 @@ impl Method for Sg {
     const KIND: BakeKind = BakeKind::Sg;
     type Settings = SgSettings;
     type Baked = SgBaked;
+    const PART_UNIT: &'static str = "flood-fill region";
 
     fn validate(s: &SgSettings) -> Result<(), MethodError> {
         Ok(s.bake.validate()?)
@@ -251,53 +282,56 @@ impl Method for Sg {
         range: Range<usize>,
         ctx: &BakeContext,
     ) -> Result<SgBaked, MethodError> {
-        Sg::validate(settings)?;
-        let scene = input.scene;
-        let n = scene.mesh.vertex_count();
+        let n = input.scene.mesh.vertex_count();
         if range != (0..n) {
             // The flood fill couples neighbouring vertices (eq. 2.6) and aligns whole regions
-            // afterwards, so a vertex range alone is not a well-defined part of the bake.
+            // afterwards: a part is a set of regions (`bake_shard`), not a vertex range.
             return Err(MethodError::Settings(format!(
-                "sg bakes the whole mesh at once (vertices 0..{n}, asked {}..{}): its flood fill couples neighbouring vertices",
+                "sg bakes the whole mesh or whole flood-fill regions (a --shard), not vertices {}..{} of {n}: its flood fill couples neighbouring vertices",
                 range.start, range.end
             )));
         }
-        let blended = settings
-            .blend
-            .as_ref()
-            .map(|b| blend_materials(scene, b))
-            .transpose()?;
-        let t0 = Instant::now();
-        let caster = build_caster(&input, ctx)?;
-        let bake_settings = SgBakeSettings {
-            progress: ctx.progress,
-            ..settings.bake
-        };
-        let bake = sg::bake(
-            &scene.mesh,
-            &scene.materials,
-            blended.as_deref(),
-            caster.as_ref(),
-            &bake_settings,
-        )?;
-        Ok(SgBaked {
-            scene: BakedScene::of(&input),
-            bake,
-            settings: SgSettings {
-                bake: SgBakeSettings {
-                    progress: false,
-                    threads: None,
-                    ..settings.bake
-                },
-                blend: settings.blend,
-            },
-            record: BakeRecord::new(
-                caster.name(),
-                t0.elapsed().as_secs_f64(),
-                ctx.f16,
-                &range,
-                n,
-            ),
+        run(input, settings, ctx, |scene, blended, caster, s| {
+            let bake = sg::bake(&scene.mesh, &scene.materials, blended, caster, s)?;
+            Ok((bake, None))
+        })
+    }
+
+    /// One part per flood-fill region at most.
+    fn max_parts(input: BakeInput, settings: &SgSettings) -> usize {
+        sg::region_plan(&input.scene.mesh, &settings.bake).region_count()
+    }
+
+    /// Part `shard` is the flood-fill regions `shard.range(R)` of the mesh's `R` regions
+    /// ([`relight_bake::sg::region_plan`]), fitted as the whole bake fits them.
+    fn bake_shard(
+        input: BakeInput,
+        settings: &SgSettings,
+        shard: Shard,
+        ctx: &BakeContext,
+    ) -> Result<SgBaked, MethodError> {
+        run(input, settings, ctx, |scene, blended, caster, s| {
+            let plan = sg::region_plan(&scene.mesh, s);
+            let r = plan.region_count();
+            if shard.count > r {
+                return Err(MethodError::Settings(format!(
+                    "--shard {}/{}: the mesh has {r} flood-fill regions, the unit an sg bake splits; use at most {r} parts, or more regions (--regions, up to {})",
+                    shard.index,
+                    shard.count,
+                    relight_bake::sg::MAX_REGIONS
+                )));
+            }
+            let part = sg::bake_regions(
+                &scene.mesh,
+                &scene.materials,
+                blended,
+                caster,
+                s,
+                &plan,
+                shard.range(r),
+            )?;
+            let (bake, rows) = from_part(part, s);
+            Ok((bake, Some(rows)))
         })
     }
 
@@ -307,6 +341,147 @@ impl Method for Sg {
 
     fn load(bundle: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
         store::load(bundle, path)
+    }
+}
+
+/// The parts of [`Sg::bake`] and [`Sg::bake_shard`] around the bake itself: settings
+/// checked, materials blended, caster built, settings and record made.
+fn run(
+    input: BakeInput,
+    settings: &SgSettings,
+    ctx: &BakeContext,
+    bake: impl FnOnce(
+        &Scene,
+        Option<&[Material]>,
+        &dyn relight_scene::accel::RayCaster,
+        &SgBakeSettings,
+    ) -> Result<(SgBake, Option<SgPartRows>), MethodError>,
+) -> Result<SgBaked, MethodError> {
+    Sg::validate(settings)?;
+    let scene = input.scene;
+    let n = scene.mesh.vertex_count();
+    let blended = settings
+        .blend
+        .as_ref()
+        .map(|b| blend_materials(scene, b))
+        .transpose()?;
+    let t0 = Instant::now();
+    let caster = build_caster(&input, ctx)?;
+    let bake_settings = SgBakeSettings {
+        progress: ctx.progress,
+        ..settings.bake
+    };
+    let (bake, part) = bake(scene, blended.as_deref(), caster.as_ref(), &bake_settings)?;
+    Ok(SgBaked {
+        scene: BakedScene::of(&input),
+        bake,
+        settings: SgSettings {
+            bake: SgBakeSettings {
+                progress: false,
+                threads: None,
+                ..settings.bake
+            },
+            blend: settings.blend,
+        },
+        record: BakeRecord::new(
+            caster.name(),
+            t0.elapsed().as_secs_f64(),
+            ctx.f16,
+            &(0..n),
+            n,
+        ),
+        part,
+    })
+}
+
+/// A part's fit as rows of a bake and the part's extra data.
+fn from_part(p: SgPart, s: &SgBakeSettings) -> (SgBake, SgPartRows) {
+    let views = relight_sphere::icosphere::Icosphere::new(sg::VIEW_FREQUENCY)
+        .vertices()
+        .len();
+    let n = p.fit.vertices.len();
+    let mut lobes = p.fit.lobes.into_iter();
+    let mut comp = |count: usize| {
+        lobes.next().map(|l| SgLobes {
+            lobe_count: count,
+            view_count: views,
+            lobes: l,
+        })
+    };
+    let direct = comp(s.direct_lobes).unwrap_or(SgLobes {
+        lobe_count: s.direct_lobes,
+        view_count: views,
+        lobes: vec![],
+    });
+    let indirect = comp(s.indirect_lobes);
+    let bake = SgBake {
+        view_frequency: sg::VIEW_FREQUENCY,
+        direct,
+        indirect,
+        diffuse: ShTransfer {
+            order: s.diffuse_order,
+            kind: ShTransferKind::Shadowed,
+            vertex_count: n,
+            channels: 1,
+            data: p.fit.diffuse_sh,
+        },
+        materials: p.materials,
+        stats: SgFitStats {
+            iterations: p.fit.iterations,
+            ..SgFitStats::default()
+        },
+    };
+    let rows = SgPartRows {
+        vertices: p.fit.vertices,
+        errors: p.fit.errors,
+    };
+    (bake, rows)
+}
+
+/// The inverse of [`from_part`].
+pub(crate) fn to_part(b: SgBake, rows: SgPartRows) -> SgPart {
+    let stride = b.diffuse.coeff_count();
+    let mut lobes = vec![b.direct.lobes];
+    lobes.extend(b.indirect.map(|l| l.lobes));
+    SgPart {
+        fit: PartFit {
+            vertices: rows.vertices,
+            lobes,
+            errors: rows.errors,
+            diffuse_sh: b.diffuse.data,
+            diffuse_stride: stride,
+            iterations: b.stats.iterations,
+        },
+        materials: b.materials,
+    }
+}
+
+impl SgPartRows {
+    /// Vertices ascending and below `mesh_vertices`; one error per view and row of each
+    /// component.
+    fn validate(&self, mesh_vertices: usize, views: usize, indirect: bool) -> Result<(), String> {
+        if self.vertices.windows(2).any(|w| w[0] >= w[1])
+            || self
+                .vertices
+                .last()
+                .is_some_and(|&x| x as usize >= mesh_vertices)
+        {
+            return Err(format!(
+                "part vertices are not ascending vertices of the mesh's {mesh_vertices}"
+            ));
+        }
+        let comps = 1 + indirect as usize;
+        let want = self.vertices.len() * views;
+        if self.errors.len() != comps || self.errors.iter().any(|e| e.len() != want) {
+            return Err(format!(
+                "part errors: {:?} values per component, expected {comps} components of {want}",
+                self.errors.iter().map(Vec::len).collect::<Vec<_>>()
+            ));
+        }
+        if self.errors.iter().flatten().any(|e| !e.is_finite()) {
+            return Err("part errors are not all finite".into());
+        }
+        Ok(())
     }
 }
 

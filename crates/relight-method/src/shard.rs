@@ -4,21 +4,33 @@
 //!
 //! # Conventions
 //! * Part `i` of `N` (0-based, as `SLURM_ARRAY_TASK_ID` and `JOB_COMPLETION_INDEX` count)
-//!   bakes the vertices `floor(i V / N) .. floor((i + 1) V / N)`: contiguous, in order, every
-//!   vertex in exactly one part ([`Shard::range`]).
-//! * A part bundle records its [`Shard`] and vertex range in its [`BakeRecord`]; it holds the
-//!   whole scene (so a merge can check that every part saw the same one) and only its rows of
-//!   the method's per-vertex tensors. Frames refuse it ([`crate::MethodError::PartialBake`]).
+//!   holds the units `floor(i U / N) .. floor((i + 1) U / N)` of the bake's `U` units
+//!   ([`Shard::range`]): contiguous, in order, every unit in exactly one part. The unit is
+//!   the method's ([`Method::bake_shard`]): a vertex for `sh`, a flood-fill region for `sg`.
+//! * A part bundle records its [`Shard`] in its [`BakeRecord`](crate::store::BakeRecord)
+//!   (and, for `sh`, its vertex range); it holds the whole scene (so a merge can check that
+//!   every part saw the same one) and only its rows of the method's per-vertex tensors.
+//!   Frames refuse it ([`crate::MethodError::PartialBake`]).
 //! * A bake is a pure function of the scene, the settings (seed included) and the back-end:
 //!   vertex `v`'s samples are seeded by `(seed, v)`, never by the thread or the part, and the
-//!   bundle records no time. So the concatenated rows are the single-process bake's rows.
+//!   bundle records no time. So the merged rows are the single-process bake's rows.
 //!
-//! Which methods split: `sh` with unshadowed or shadowed transfer, by vertex ranges.
-//! Interreflected `sh` is refused: each bounce gathers the previous bounce of *every*
-//! vertex, so every part would trace the whole mesh (no part would be cheaper than the whole
-//! bake). `sg` is refused: its flood fill couples neighbouring vertices (Green 2005 eq. 2.6).
+//! Which methods split, and how:
+//! * `sh` with unshadowed or shadowed transfer, by vertex ranges; the merge concatenates.
+//! * `sg`, by flood-fill regions (Green 2005 section 2.2.2; `relight_bake::sg::fit`): the
+//!   fill couples neighbouring vertices *within* a region only (eq. 2.6), so regions are
+//!   independent; a part fits its regions and stores their rows (f32 whatever the bake's
+//!   precision, with the fit errors), and the merge runs what one process runs after the
+//!   fill: the regions' alignment, the flip count and the statistics. Relaxation sweeps refit
+//!   vertices across region borders after the fill, so a bake with relaxation is refused.
+//!   At most one part per region (`--regions` raises their number).
+//! * Interreflected `sh` is refused: each bounce gathers the previous bounce of *every*
+//!   vertex, so every part would trace the whole mesh (no part would be cheaper than the
+//!   whole bake).
 
-use crate::{sh::ShBaked, BakeContext, BakeInput, Baked, Method, MethodError};
+use crate::sg::{SgBaked, SgPartRows};
+use crate::{sh::ShBaked, BakeContext, BakeInput, BakeKind, Baked, Method, MethodError};
+use relight_bake::sg::{self, SgBake};
 use relight_bake::sh::ShTransfer;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
@@ -89,14 +101,21 @@ pub fn bake_part<M: Method>(
 where
     M::Baked: Into<Baked>,
 {
-    let v = input.scene.mesh.vertex_count();
-    if shard.count > v {
+    let most = M::max_parts(input, settings);
+    if shard.count > most {
+        let more = match M::KIND {
+            crate::BakeKind::Sg => " (--regions raises their number)",
+            crate::BakeKind::Sh => "",
+        };
         return Err(MethodError::Settings(format!(
-            "--shard {}/{}: more parts than the mesh's {v} vertices",
-            shard.index, shard.count
+            "--shard {}/{}: this {} bake splits into at most {most} parts, one per {}{more}",
+            shard.index,
+            shard.count,
+            M::KIND.name(),
+            M::PART_UNIT
         )));
     }
-    let mut baked: Baked = M::bake(input, settings, shard.range(v), ctx)?.into();
+    let mut baked: Baked = M::bake_shard(input, settings, shard, ctx)?.into();
     baked.record_mut().shard = Some(shard);
     Ok(baked)
 }
@@ -181,7 +200,7 @@ where
             }
         }
         let want = s.range(v);
-        if r.range.unwrap_or((0, v)) != (want.start, want.end) {
+        if b.kind() == BakeKind::Sh && r.range.unwrap_or((0, v)) != (want.start, want.end) {
             return Err(err(
                 &path,
                 format!(
@@ -215,6 +234,7 @@ where
             format!("parts {} of {} are missing", missing.join(", "), s0.count),
         ));
     }
+    let paths: Vec<PathBuf> = slot.iter().flatten().map(|(p, _)| p.clone()).collect();
     let mut it = slot.into_iter().flatten().map(|(_, b)| b);
     let mut whole = match it.next() {
         Some(Baked::Sh(mut sh)) => {
@@ -226,19 +246,79 @@ where
             }
             Baked::Sh(sh)
         }
-        Some(Baked::Sg(_)) => {
-            return Err(err(&first_path, "sg bakes cannot be sharded".into()));
+        Some(Baked::Sg(first)) => {
+            let mesh = &scene.as_ref().expect("at least one part").mesh;
+            let SgBaked {
+                scene: s,
+                bake,
+                settings,
+                record,
+                part,
+            } = first;
+            let rest = it.map(|b| match b {
+                Baked::Sg(b) => (b.bake, b.part),
+                Baked::Sh(_) => unreachable!("kinds checked above"),
+            });
+            let bake = merge_sg(
+                &settings.bake,
+                std::iter::once((bake, part)).chain(rest),
+                &paths,
+                mesh,
+            )?;
+            Baked::Sg(SgBaked {
+                scene: s,
+                bake,
+                settings,
+                record,
+                part: None,
+            })
         }
         None => unreachable!("no part is missing"),
     };
     whole.put_scene(scene.expect("at least one part"));
     let r = whole.record_mut();
     (r.range, r.shard) = (None, None);
-    if let Baked::Sh(sh) = &whole {
-        sh.validate()
-            .map_err(|e| err(&first_path, format!("merged bake: {e}")))?;
-    }
+    let valid = match &whole {
+        Baked::Sh(sh) => sh.validate(),
+        Baked::Sg(sg) => sg.validate(),
+    };
+    valid.map_err(|e| err(&first_path, format!("merged bake: {e}")))?;
     Ok(whole)
+}
+
+/// The whole `sg` bake from its parts `all` in part order (`paths` name them):
+/// each part must hold the vertices of the regions its number says
+/// ([`relight_bake::sg::finish_parts`] then aligns the regions as one process does).
+fn merge_sg(
+    settings: &relight_bake::sg::SgBakeSettings,
+    all: impl Iterator<Item = (SgBake, Option<SgPartRows>)>,
+    paths: &[PathBuf],
+    mesh: &relight_scene::mesh::TriMesh,
+) -> Result<SgBake, MethodError> {
+    let plan = sg::region_plan(mesh, settings);
+    let count = paths.len();
+    let r = plan.region_count();
+    let mut parts = Vec::with_capacity(count);
+    for (i, ((bake, rows), path)) in all.zip(paths).enumerate() {
+        let bad = |message: String| MethodError::Merge {
+            path: path.clone(),
+            message,
+        };
+        let Some(rows) = rows else {
+            return Err(bad("holds no part rows".into()));
+        };
+        let want = Shard { index: i, count }.range(r);
+        if rows.vertices != plan.vertices(want.clone()) {
+            return Err(bad(format!(
+                "does not hold the vertices of flood-fill regions {want:?} of {r}, which part {i}/{count} is"
+            )));
+        }
+        parts.push(crate::sg::to_part(bake, rows));
+    }
+    sg::finish_parts(mesh, settings, parts).map_err(|e| MethodError::Merge {
+        path: paths[0].clone(),
+        message: e.to_string(),
+    })
 }
 
 /// Append the rows of part `p` to `sh`.
@@ -252,3 +332,5 @@ fn append_sh(sh: &mut ShBaked, p: ShBaked) {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_sg;

@@ -54,18 +54,24 @@ pub struct BakeRecord {
 }
 
 impl BakeRecord {
-    /// Check a part range against the mesh: `Ok` for a whole bake.
+    /// Check that the bundle is a whole bake, not a part of a sharded one.
     ///
     /// # Errors
     /// [`MethodError::PartialBake`] for a part bundle.
     pub fn require_whole(&self, path: &Path, vertices: usize) -> Result<(), MethodError> {
-        match self.range {
-            Some((start, end)) if (start, end) != (0, vertices) => Err(MethodError::PartialBake {
+        let part = |what: String| {
+            Err(MethodError::PartialBake {
                 path: path.to_path_buf(),
-                start,
-                end,
-                total: vertices,
-            }),
+                part: what,
+            })
+        };
+        match (self.range, self.shard) {
+            (Some((start, end)), _) if (start, end) != (0, vertices) => part(format!(
+                "a part bundle (vertices {start}..{end} of {vertices})"
+            )),
+            (_, Some(s)) if s.count > 1 => {
+                part(format!("part {}/{} of a sharded bake", s.index, s.count))
+            }
             _ => Ok(()),
         }
     }

@@ -100,6 +100,7 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
+use std::ops::Range;
 use vertex::{fit_vertex, VertexInput};
 
 /// What to fit.
@@ -138,8 +139,129 @@ pub fn auto_regions(vertices: usize) -> usize {
 struct Component {
     fit: ComponentFit,
     lobes: Vec<SgLobe>,
-    /// Relative L2 error per (vertex, view); negative where the view has no data.
-    error: Vec<f64>,
+    /// Relative L2 error per (vertex, view); negative where the view has no data. Kept in
+    /// `f32` so that a part bundle carries it exactly (a merge recomputes the same mean).
+    error: Vec<f32>,
+}
+
+/// The flood-fill regions of a mesh (module docs): the unit of parallel work, and the unit a
+/// sharded bake splits (`relight_method::shard`). A pure function of the vertex count, the
+/// triangles and [`SgFitSettings::regions`].
+pub struct RegionPlan {
+    adj: Adjacency,
+    regions: Regions,
+}
+
+impl RegionPlan {
+    /// The regions of a mesh of `vertex_count` vertices and `triangles` (indices in range).
+    pub fn new(vertex_count: usize, triangles: &[[u32; 3]], fit: &SgFitSettings) -> RegionPlan {
+        let adj = Adjacency::new(vertex_count, triangles);
+        let requested = match fit.regions {
+            0 => auto_regions(vertex_count),
+            r => r,
+        };
+        let regions = graph::regions(&adj, requested);
+        RegionPlan { adj, regions }
+    }
+
+    /// Number of regions (at least one per connected component; 0 for no vertices).
+    pub fn region_count(&self) -> usize {
+        self.regions.orders.len()
+    }
+
+    /// The vertices of the regions `range`, ascending.
+    pub fn vertices(&self, range: Range<usize>) -> Vec<u32> {
+        let mut v: Vec<u32> = self.regions.orders[range].concat();
+        v.sort_unstable();
+        v
+    }
+}
+
+/// The fits of the vertices of some regions, before the regions are aligned (rows in
+/// ascending vertex order): what a part of a sharded bake holds, and what [`finish`] takes
+/// once the parts are put together.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartFit {
+    /// The vertices, ascending.
+    pub vertices: Vec<u32>,
+    /// Per component (direct, then indirect if fitted): `views * lobes` lobes per vertex.
+    pub lobes: Vec<Vec<SgLobe>>,
+    /// Per component: the relative L2 error of each view per vertex (negative: no data).
+    pub errors: Vec<Vec<f32>>,
+    /// Diffuse SH per vertex (`diffuse_stride` floats each).
+    pub diffuse_sh: Vec<f32>,
+    /// Floats of diffuse SH per vertex.
+    pub diffuse_stride: usize,
+    /// Levenberg-Marquardt iterations spent.
+    pub iterations: u64,
+}
+
+impl PartFit {
+    /// Put parts together: rows of every part, by vertex, ascending.
+    ///
+    /// # Errors
+    /// A message if two parts hold the same vertex or their layouts differ.
+    pub fn join(parts: Vec<PartFit>) -> Result<PartFit, String> {
+        let Some(first) = parts.first() else {
+            return Err("no parts".into());
+        };
+        let comps = first.lobes.len();
+        let stride = first.diffuse_stride;
+        let row = |p: &PartFit, c: usize| p.lobes[c].len() / p.vertices.len().max(1);
+        let rows: Vec<usize> = (0..comps).map(|c| row(first, c)).collect();
+        let mut owner: Vec<(u32, usize, usize)> = vec![]; // (vertex, part, row)
+        for (pi, p) in parts.iter().enumerate() {
+            if p.lobes.len() != comps || p.diffuse_stride != stride {
+                return Err(format!("part {pi} has another layout than part 0"));
+            }
+            owner.extend(p.vertices.iter().enumerate().map(|(i, &x)| (x, pi, i)));
+        }
+        owner.sort_unstable();
+        if let Some(w) = owner.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(format!("vertex {} is in two parts", w[0].0));
+        }
+        let views = first
+            .errors
+            .first()
+            .map_or(0, |e| e.len() / first.vertices.len().max(1));
+        let mut out = PartFit {
+            vertices: owner.iter().map(|o| o.0).collect(),
+            lobes: vec![vec![]; comps],
+            errors: vec![vec![]; comps],
+            diffuse_sh: Vec::with_capacity(owner.len() * stride),
+            diffuse_stride: stride,
+            iterations: parts.iter().map(|p| p.iterations).sum(),
+        };
+        for &(_, pi, i) in &owner {
+            let p = &parts[pi];
+            for c in 0..comps {
+                out.lobes[c].extend_from_slice(&p.lobes[c][i * rows[c]..(i + 1) * rows[c]]);
+                out.errors[c].extend_from_slice(&p.errors[c][i * views..(i + 1) * views]);
+            }
+            out.diffuse_sh
+                .extend_from_slice(&p.diffuse_sh[i * stride..(i + 1) * stride]);
+        }
+        Ok(out)
+    }
+}
+
+/// The components to fit: per component, its cube-map resolution and lobe count.
+fn component_fits(res: [usize; 2], config: &FitConfig, views: &Icosphere) -> Vec<ComponentFit> {
+    let mut fits = vec![ComponentFit::new(
+        res[0],
+        config.direct_lobes,
+        &config.fit,
+        views,
+    )];
+    if config.indirect_lobes > 0 && res[1] > 0 {
+        fits.push(ComponentFit::new(
+            res[1],
+            config.indirect_lobes,
+            &config.fit,
+            views,
+        ));
+    }
+    fits
 }
 
 /// Fits every vertex and view of `source` (module docs) on the current rayon pool, counting
@@ -156,89 +278,128 @@ pub fn fit_mesh<S: TransportSource + ?Sized>(
     config: &FitConfig,
     progress: &ProgressBar,
 ) -> MeshFit {
+    let plan = RegionPlan::new(source.vertex_count(), triangles, &config.fit);
+    let all = fit_regions(source, &plan, config, 0..plan.region_count(), progress);
+    let res = [source.direct_res(), source.indirect_res()];
+    finish(&plan, config, res, all, Some(source), progress)
+}
+
+/// Flood-fills the regions `range` of `plan` (module docs) in parallel: the first half of
+/// [`fit_mesh`], and what one part of a sharded bake runs.
+pub fn fit_regions<S: TransportSource + ?Sized>(
+    source: &S,
+    plan: &RegionPlan,
+    config: &FitConfig,
+    range: Range<usize>,
+    progress: &ProgressBar,
+) -> PartFit {
     debug_assert!((1..=10).contains(&config.direct_lobes) && config.indirect_lobes <= 10);
     let views = Icosphere::new(VIEW_FREQUENCY);
     let nview = views.vertices().len();
-    let nv = source.vertex_count();
-    let adj = Adjacency::new(nv, triangles);
-    let requested = match config.fit.regions {
-        0 => auto_regions(nv),
-        r => r,
-    };
-    let regions = graph::regions(&adj, requested);
-    let mut comps = vec![Component {
-        fit: ComponentFit::new(
-            source.direct_res(),
-            config.direct_lobes,
-            &config.fit,
-            &views,
-        ),
-        lobes: vec![],
-        error: vec![-1.0; nv * nview],
-    }];
-    if config.indirect_lobes > 0 && source.indirect_res() > 0 {
-        comps.push(Component {
-            fit: ComponentFit::new(
-                source.indirect_res(),
-                config.indirect_lobes,
-                &config.fit,
-                &views,
-            ),
-            lobes: vec![],
-            error: vec![-1.0; nv * nview],
-        });
-    }
-    for c in &mut comps {
-        c.lobes = vec![SgLobe::new(glam::Vec3::Y, 1.0, glam::Vec3::ZERO); nv * nview * c.fit.lobes];
-    }
-    let fits: Vec<ComponentFit> = comps.iter().map(|c| c.fit.clone()).collect();
-
-    // Flood fill every region in parallel.
-    let filled: Vec<RegionFit> = (0..regions.orders.len())
+    let fits = component_fits([source.direct_res(), source.indirect_res()], config, &views);
+    let filled: Vec<RegionFit> = range
+        .clone()
         .into_par_iter()
-        .map(|r| fill_region(source, &fits, &adj, &regions, r, progress))
+        .map(|r| fill_region(source, &fits, &plan.adj, &plan.regions, r, progress))
         .collect();
-    let mut stats = SgFitStats::default();
-    let mut diffuse_stride = 0;
-    let mut diffuse_sh = vec![];
-    for (order, rf) in regions.orders.iter().zip(&filled) {
-        for (i, &x) in order.iter().enumerate() {
-            let x = x as usize;
-            for (c, f) in comps.iter_mut().zip(&rf.fits) {
-                let s = nview * c.fit.lobes;
-                c.lobes[x * s..(x + 1) * s].copy_from_slice(&f[i].lobes);
-                c.error[x * nview..(x + 1) * nview].copy_from_slice(&f[i].errors);
-                stats.iterations += f[i].iterations;
-            }
-            let d = &rf.diffuse[i];
-            if diffuse_sh.is_empty() {
-                diffuse_stride = d.len();
-                diffuse_sh = vec![0.0; nv * diffuse_stride];
-            }
-            debug_assert_eq!(d.len(), diffuse_stride);
-            diffuse_sh[x * diffuse_stride..(x + 1) * diffuse_stride].copy_from_slice(d);
+    // Rows in ascending vertex order.
+    let mut at: Vec<(u32, usize, usize)> = filled
+        .iter()
+        .zip(&plan.regions.orders[range])
+        .enumerate()
+        .flat_map(|(ri, (_, order))| order.iter().enumerate().map(move |(i, &x)| (x, ri, i)))
+        .collect();
+    at.sort_unstable();
+    let stride = filled
+        .iter()
+        .find_map(|rf| rf.diffuse.first().map(Vec::len))
+        .unwrap_or(0);
+    let mut out = PartFit {
+        vertices: at.iter().map(|a| a.0).collect(),
+        lobes: fits
+            .iter()
+            .map(|f| Vec::with_capacity(at.len() * nview * f.lobes))
+            .collect(),
+        errors: vec![Vec::with_capacity(at.len() * nview); fits.len()],
+        diffuse_sh: Vec::with_capacity(at.len() * stride),
+        diffuse_stride: stride,
+        iterations: 0,
+    };
+    for &(_, ri, i) in &at {
+        let rf = &filled[ri];
+        for (c, f) in rf.fits.iter().enumerate() {
+            out.lobes[c].extend_from_slice(&f[i].lobes);
+            out.errors[c].extend(f[i].errors.iter().map(|&e| e as f32));
+            out.iterations += f[i].iterations;
         }
+        debug_assert_eq!(rf.diffuse[i].len(), stride);
+        out.diffuse_sh.extend_from_slice(&rf.diffuse[i]);
     }
+    out
+}
 
-    // Align regions, count flips, relax.
-    for c in &mut comps {
-        flips::align_regions(&mut c.lobes, nview, c.fit.lobes, &adj, &regions);
-    }
-    (stats.flips, stats.flips_after_relaxation) = relax(
-        source,
-        &mut comps,
-        &adj,
-        config.fit.relax_sweeps,
-        progress,
-        &mut stats.iterations,
+/// The second half of [`fit_mesh`]: aligns the regions of `whole` (every vertex of the
+/// plan), counts flips, relaxes (`relax` is the transport, needed only when
+/// `config.fit.relax_sweeps > 0`) and computes the statistics. `res` is the direct and
+/// indirect cube-map resolution of the transport (what [`TransportSource`] reports).
+///
+/// # Panics
+/// If `whole` does not hold every vertex of `plan`, or relaxation is asked without `relax`.
+pub fn finish<S: TransportSource + ?Sized>(
+    plan: &RegionPlan,
+    config: &FitConfig,
+    res: [usize; 2],
+    whole: PartFit,
+    relax_source: Option<&S>,
+    progress: &ProgressBar,
+) -> MeshFit {
+    let views = Icosphere::new(VIEW_FREQUENCY);
+    let nv = plan.adj.len();
+    assert!(
+        whole.vertices.len() == nv
+            && whole
+                .vertices
+                .iter()
+                .enumerate()
+                .all(|(i, &x)| x as usize == i),
+        "finish needs every vertex"
     );
-
+    let mut comps: Vec<Component> = component_fits(res, config, &views)
+        .into_iter()
+        .zip(whole.lobes)
+        .zip(whole.errors)
+        .map(|((fit, lobes), error)| Component { fit, lobes, error })
+        .collect();
+    let mut stats = SgFitStats {
+        iterations: whole.iterations,
+        ..SgFitStats::default()
+    };
+    let nview = views.vertices().len();
+    for c in &mut comps {
+        flips::align_regions(&mut c.lobes, nview, c.fit.lobes, &plan.adj, &plan.regions);
+    }
+    let sweeps = config.fit.relax_sweeps;
+    (stats.flips, stats.flips_after_relaxation) = match relax_source {
+        Some(source) => relax(
+            source,
+            &mut comps,
+            &plan.adj,
+            sweeps,
+            progress,
+            &mut stats.iterations,
+        ),
+        None => {
+            assert!(sweeps == 0, "relaxation needs the transport");
+            let flips = count_flips(&comps, &plan.adj).0;
+            (flips, flips)
+        }
+    };
     for (i, c) in comps.iter().enumerate() {
         let (s, n) = c
             .error
             .iter()
             .filter(|&&e| e >= 0.0)
-            .fold((0.0, 0), |(s, n), &e| (s + e, n + 1));
+            .fold((0.0, 0), |(s, n), &e| (s + e as f64, n + 1));
         stats.mean_relative_error[i] = if n > 0 { s / n as f64 } else { 0.0 };
     }
     let mut comps = comps.into_iter().map(|c| SgLobes {
@@ -249,8 +410,8 @@ pub fn fit_mesh<S: TransportSource + ?Sized>(
     MeshFit {
         direct: comps.next().expect("the direct component"),
         indirect: comps.next(),
-        diffuse_sh,
-        diffuse_stride,
+        diffuse_sh: whole.diffuse_sh,
+        diffuse_stride: whole.diffuse_stride,
         stats,
     }
 }
@@ -317,7 +478,7 @@ fn relax<S: TransportSource + ?Sized>(
                 let s = nview * c.fit.lobes;
                 c.lobes[x * s..(x + 1) * s].copy_from_slice(&f.lobes);
                 for v in (0..nview).filter(|&v| mask >> v & 1 == 1) {
-                    c.error[x * nview + v] = f.errors[v];
+                    c.error[x * nview + v] = f.errors[v] as f32;
                 }
                 *iterations += f.iterations;
             }

@@ -9,7 +9,7 @@
 //! Bundles from before schema 2 recorded the settings flat with the fit's fields prefixed
 //! `fit_` and the blend as a description string; [`migrate_settings`] reads them.
 
-use super::{SgBaked, SgSettings};
+use super::{SgBaked, SgPartRows, SgSettings};
 use crate::store::{float_tensor, json, BakedScene, TensorReader};
 use crate::{BakeKind, MethodError};
 use glam::Vec3;
@@ -58,7 +58,10 @@ pub(super) fn store(b: &SgBaked) -> Result<Bundle, MethodError> {
     };
     out.metadata.insert("sg_stats".into(), json(&stats)?);
     // Distinct per-vertex materials (one per vertex only when blended).
-    let v = b.scene.mesh.vertex_count();
+    let v = b
+        .part
+        .as_ref()
+        .map_or(b.scene.mesh.vertex_count(), |p| p.vertices.len());
     let mut palette: Vec<Material> = vec![];
     let mut ids = Vec::with_capacity(v);
     for mat in &b.bake.materials {
@@ -73,7 +76,17 @@ pub(super) fn store(b: &SgBaked) -> Result<Bundle, MethodError> {
     }
     out.metadata.insert("sg_materials".into(), json(&palette)?);
     out.insert("sg_vertex_material", Tensor::from_u32(vec![v], &ids));
-    let f16 = b.record.f16;
+    // A part keeps f32 whatever the bake's precision: the merge aligns regions on the exact
+    // lobes, as one process does, and only the merged bundle is rounded.
+    let f16 = b.record.f16 && b.part.is_none();
+    if let Some(p) = &b.part {
+        out.insert("sg_part_vertices", Tensor::from_u32(vec![v], &p.vertices));
+        let views = b.bake.direct.view_count;
+        out.insert(
+            "sg_part_errors",
+            Tensor::from_f32(vec![p.errors.len(), v, views], &p.errors.concat()),
+        );
+    }
     for (name, l) in [
         ("sg_direct", Some(&b.bake.direct)),
         ("sg_indirect", b.bake.indirect.as_ref()),
@@ -135,7 +148,28 @@ pub(super) fn load(b: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
     let scene = BakedScene::load(&r)?;
     let palette: Vec<Material> = r.json("sg_materials")?;
     let stats: RecordedStats = r.json("sg_stats")?;
-    let v = scene.mesh.vertex_count();
+    let part_vertices = match record.shard {
+        None => None,
+        Some(_) => {
+            let t = b.tensor(path, "sg_part_vertices")?;
+            let [n] = t.shape[..] else {
+                return Err(r.invalid(format!(
+                    "tensor 'sg_part_vertices' has shape {:?}, expected one dimension",
+                    t.shape
+                )));
+            };
+            if n > scene.mesh.vertex_count() {
+                return Err(r.invalid(format!(
+                    "a part of {n} vertices of a mesh of {}",
+                    scene.mesh.vertex_count()
+                )));
+            }
+            Some(r.u32s("sg_part_vertices", &[n])?)
+        }
+    };
+    let v = part_vertices
+        .as_ref()
+        .map_or(scene.mesh.vertex_count(), Vec::len);
     let vertex_materials = r
         .u32s("sg_vertex_material", &[v])?
         .iter()
@@ -203,7 +237,21 @@ pub(super) fn load(b: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
         channels: 1,
         data: r.f32s("sg_diffuse", &[v, n2, 1])?,
     };
+    let part = match part_vertices {
+        None => None,
+        Some(vertices) => {
+            let comps = 1 + usize::from(s.indirect_lobes > 0);
+            let errors = r.f32s("sg_part_errors", &[comps, v, views])?;
+            Some(SgPartRows {
+                vertices,
+                errors: (0..comps)
+                    .map(|c| errors[c * v * views..(c + 1) * v * views].to_vec())
+                    .collect(),
+            })
+        }
+    };
     let baked = SgBaked {
+        part,
         scene,
         bake: SgBake {
             view_frequency: f,

@@ -80,6 +80,7 @@ fn baked(f16: bool) -> SgBaked {
         }),
     };
     SgBaked {
+        part: None,
         scene: BakedScene {
             desc: scene(),
             mesh,

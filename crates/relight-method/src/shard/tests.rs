@@ -166,7 +166,7 @@ fn methods_that_cannot_be_split_say_why() {
     .err()
     .unwrap()
     .to_string();
-    assert!(e.contains("more parts than"), "{e}");
+    assert!(e.contains("at most") && e.contains("one per vertex"), "{e}");
 }
 
 #[test]
