@@ -39,6 +39,7 @@
 
 mod crc32;
 pub mod output;
+pub mod stream;
 pub mod tmpfile;
 
 pub use crc32::{crc32, Crc32};
@@ -275,42 +276,15 @@ impl Bundle {
     pub fn to_bytes(&self) -> Vec<u8> {
         // Lay out the data section in name order.
         let mut data = Vec::new();
-        let mut header = Map::new();
-        for (name, t) in &self.tensors {
+        for t in self.tensors.values() {
             debug_assert_eq!(t.bytes.len(), t.len() * t.dtype.size());
-            let begin = data.len();
             data.extend_from_slice(&t.bytes);
-            let mut e = Map::new();
-            e.insert("dtype".into(), Value::from(t.dtype.name()));
-            e.insert("shape".into(), Value::from(t.shape.clone()));
-            e.insert("data_offsets".into(), Value::from(vec![begin, data.len()]));
-            header.insert(name.clone(), Value::Object(e));
         }
-        let mut meta = Map::new();
-        for (k, v) in &self.metadata {
-            if !RESERVED.contains(&k.as_str()) {
-                meta.insert(k.clone(), Value::from(v.clone()));
-            }
-        }
-        meta.insert("format".into(), Value::from(FORMAT_NAME));
-        meta.insert(
-            "format_version".into(),
-            Value::from(FORMAT_VERSION.to_string()),
-        );
-        meta.insert(
-            "data_crc32".into(),
-            Value::from(format!("{:08x}", crc32(&data))),
-        );
-        meta.insert("header_crc32".into(), Value::from("00000000"));
-        header.insert("__metadata__".into(), Value::Object(meta));
-        let mut h = serde_json::to_string(&Value::Object(header)).expect("JSON of strings");
-        while !h.len().is_multiple_of(8) {
-            h.push(' ');
-        }
-        // Fill in the header checksum over the header with the placeholder in place.
-        let crc = crc32(h.as_bytes());
-        let at = h.find(HEADER_CRC_KEY).expect("placeholder present") + HEADER_CRC_KEY.len();
-        h.replace_range(at..at + 8, &format!("{crc:08x}"));
+        let specs = self
+            .tensors
+            .iter()
+            .map(|(n, t)| (n.as_str(), t.dtype, &t.shape[..]));
+        let h = header_text(&self.metadata, specs, crc32(&data));
         let mut out = Vec::with_capacity(8 + h.len() + data.len());
         out.extend_from_slice(&(h.len() as u64).to_le_bytes());
         out.extend_from_slice(h.as_bytes());
@@ -465,6 +439,50 @@ impl Bundle {
     }
 }
 
+/// The header of a bundle (padded, with both checksums): `metadata`, and the tensors `specs`
+/// (name, type, shape) laid out in the order given, which must be name order; `data_crc` is
+/// the CRC-32 of the data section. Its length does not depend on `data_crc`.
+fn header_text<'a>(
+    metadata: &BTreeMap<String, String>,
+    specs: impl Iterator<Item = (&'a str, DType, &'a [usize])>,
+    data_crc: u32,
+) -> String {
+    let mut header = Map::new();
+    let mut end = 0;
+    for (name, dtype, shape) in specs {
+        let begin = end;
+        end += shape.iter().product::<usize>() * dtype.size();
+        let mut e = Map::new();
+        e.insert("dtype".into(), Value::from(dtype.name()));
+        e.insert("shape".into(), Value::from(shape.to_vec()));
+        e.insert("data_offsets".into(), Value::from(vec![begin, end]));
+        header.insert(name.to_string(), Value::Object(e));
+    }
+    let mut meta = Map::new();
+    for (k, v) in metadata {
+        if !RESERVED.contains(&k.as_str()) {
+            meta.insert(k.clone(), Value::from(v.clone()));
+        }
+    }
+    meta.insert("format".into(), Value::from(FORMAT_NAME));
+    meta.insert(
+        "format_version".into(),
+        Value::from(FORMAT_VERSION.to_string()),
+    );
+    meta.insert("data_crc32".into(), Value::from(format!("{data_crc:08x}")));
+    meta.insert("header_crc32".into(), Value::from("00000000"));
+    header.insert("__metadata__".into(), Value::Object(meta));
+    let mut h = serde_json::to_string(&Value::Object(header)).expect("JSON of strings");
+    while !h.len().is_multiple_of(8) {
+        h.push(' ');
+    }
+    // Fill in the header checksum over the header with the placeholder in place.
+    let crc = crc32(h.as_bytes());
+    let at = h.find(HEADER_CRC_KEY).expect("placeholder present") + HEADER_CRC_KEY.len();
+    h.replace_range(at..at + 8, &format!("{crc:08x}"));
+    h
+}
+
 /// Check that the `(begin, end, name)` spans tile `0..len` exactly (sorts `spans`).
 fn check_tiling(spans: &mut [(u64, u64, String)], len: u64) -> Result<(), String> {
     spans.sort();
@@ -534,6 +552,15 @@ fn read_regular_file(path: &Path) -> Result<Vec<u8>, BundleError> {
 /// error names `path`. Stale temporaries of killed processes in the folder are removed first
 /// (see the crate docs).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BundleError> {
+    write_atomic_with(path, |f| f.write_all(bytes))
+}
+
+/// [`write_atomic`] of what `write` writes into the temporary file (which it may also seek
+/// and rewrite); on error of `write` nothing is renamed and the temporary is removed.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<(), BundleError> {
     let io = |error| BundleError::Io {
         path: path.to_path_buf(),
         error,
@@ -551,7 +578,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BundleError> {
     let tmp = dir.join(tmpfile::temporary_name(&name));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        write(&mut f)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();

@@ -5,10 +5,11 @@ use anyhow::{bail, Context, Result};
 use clap::ArgMatches;
 use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_method::memory::MemoryPlan;
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::shard::{bake_part, Shard};
-use relight_method::{BakeContext, BakeInput, Baked, Method, MethodKind};
+use relight_method::{BakeContext, BakeInput, BakeSummary, Baked, Method, MethodKind};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -57,8 +58,13 @@ pub struct Args {
     /// Finish an interrupted checkpointed bake: bake only the chunks missing from
     /// OUT.checkpoint/ (same command and --checkpoint-vertices), then write the bundle an
     /// uninterrupted bake writes, byte for byte.
-    #[arg(long, requires = "checkpoint_vertices")]
+    #[arg(long)]
     pub resume: bool,
+    /// Memory budget, e.g. 2G or 512M: a bake whose rows would not fit is baked in chunks
+    /// written to OUT.checkpoint/ and merged by streaming (sh with unshadowed or shadowed
+    /// transfer); one that cannot be chunked is refused with the estimate before baking.
+    #[arg(long, value_name = "SIZE", value_parser = relight_method::memory::parse_size, conflicts_with = "shard")]
+    pub memory_limit: Option<u64>,
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
@@ -126,8 +132,11 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
             bail!("{opt}: interreflected transfer cannot be split (each bounce gathers the previous bounce of every vertex, so every part would trace the whole mesh); bake it whole, or split a shadowed bake");
         }
     }
+    if a.resume && a.checkpoint_vertices.is_none() && a.memory_limit.is_none() {
+        bail!("--resume finishes a bake checkpointed with --checkpoint-vertices or chunked by --memory-limit: give the same options again");
+    }
     let ckpt = relight_method::checkpoint::folder(&a.out);
-    if a.checkpoint_vertices.is_none() && ckpt.exists() {
+    if a.checkpoint_vertices.is_none() && a.memory_limit.is_none() && ckpt.exists() {
         bail!(
             "{}: holds a checkpoint of an interrupted bake of {}: rerun the same command with --checkpoint-vertices and --resume to finish it, or delete the folder",
             ckpt.display(),
@@ -171,7 +180,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         scene.mesh.vertex_count(),
         scene.mesh.triangle_count()
     );
-    let baked: Baked = match a.method.bake_kind() {
+    let baked: BakeSummary = match a.method.bake_kind() {
         relight_method::BakeKind::Sh => {
             let s = ShBakeSettings {
                 order: a.sh_order,
@@ -189,18 +198,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 s.transfer.name(),
                 s.samples
             );
-            match a.checkpoint_vertices {
-                Some(n) => relight_method::checkpoint::bake_resumable::<Sh>(
-                    input,
-                    &s,
-                    &ctx,
-                    &a.out,
-                    usize::try_from(n).unwrap_or(usize::MAX),
-                    a.resume,
-                    |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
-                )?,
-                None => bake_one::<Sh>(input, &s, a.shard, &ctx)?,
-            }
+            bake_with::<Sh>(input, &s, &a, &ctx)?
         }
         relight_method::BakeKind::Sg => {
             let s = SgSettings {
@@ -223,14 +221,66 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 r = b.direct_res,
                 q = b.indirect_res,
             );
-            bake_one::<Sg>(input, &s, a.shard, &ctx)?
+            bake_with::<Sg>(input, &s, &a, &ctx)?
         }
     };
-    if a.checkpoint_vertices.is_none() {
-        baked.write(&a.out)?; // (a checkpointed bake has written it)
-    }
     report(&a.out, &baked, out);
     Ok(())
+}
+
+/// Bake with `M` as the options say (whole, a part, checkpointed, or in chunks under a memory
+/// limit) and write the bundle.
+fn bake_with<M: Method>(
+    input: BakeInput,
+    settings: &M::Settings,
+    a: &Args,
+    ctx: &BakeContext,
+) -> Result<BakeSummary>
+where
+    M::Baked: Into<Baked>,
+{
+    let mut chunk = a
+        .checkpoint_vertices
+        .map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+    if let Some(limit) = a.memory_limit {
+        let resident = relight_eval::bench::resident_bytes().unwrap_or(0);
+        match relight_method::memory::plan::<M>(input, settings, limit, resident)? {
+            MemoryPlan::Whole { estimate } => eprintln!(
+                "memory: about {} MiB expected, within --memory-limit {} MiB",
+                estimate >> 20,
+                limit >> 20
+            ),
+            MemoryPlan::Chunks {
+                chunk_vertices,
+                whole,
+                estimate,
+            } => {
+                let c = chunk.map_or(chunk_vertices, |c| c.min(chunk_vertices));
+                eprintln!(
+                    "memory: a whole bake needs about {} MiB, over --memory-limit {} MiB: baking chunks of {c} vertices through {} (about {} MiB)",
+                    whole >> 20,
+                    limit >> 20,
+                    relight_method::checkpoint::folder(&a.out).display(),
+                    estimate >> 20
+                );
+                chunk = Some(c);
+            }
+        }
+    }
+    if let Some(n) = chunk {
+        return Ok(relight_method::checkpoint::bake_resumable::<M>(
+            input,
+            settings,
+            ctx,
+            &a.out,
+            n,
+            a.resume,
+            |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
+        )?);
+    }
+    let baked = bake_one::<M>(input, settings, a.shard, ctx)?;
+    baked.write(&a.out)?;
+    Ok(BakeSummary::of(&baked))
 }
 
 /// Bake the whole of `input` with `M`, or part `shard` of it.
@@ -263,9 +313,9 @@ where
 }
 
 /// Print what was written.
-fn report(path: &Path, baked: &Baked, out: &Out) {
-    let r = baked.record();
-    let v = baked.scene().mesh.vertex_count().max(1);
+fn report(path: &Path, baked: &BakeSummary, out: &Out) {
+    let r = &baked.record;
+    let v = baked.vertices.max(1);
     let size = args::mib(path);
     let peak = relight_eval::bench::peak_rss_mib();
     out.line(format!(
@@ -277,24 +327,23 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
         peak.map_or(String::new(), |m| format!(", peak memory {m:.0} MiB"))
     ));
     let mut extra = json!({});
-    if let Baked::Sg(sg) = baked {
-        let (lines, j) = sg.describe();
-        lines.into_iter().for_each(|l| out.line(l));
-        extra = j;
+    if let Some((lines, j)) = &baked.describe {
+        lines.iter().for_each(|l| out.line(l.clone()));
+        extra = j.clone();
     }
     out.summary(json!({
         "command": "bake",
         "shard": r.shard,
         "peak_rss_mib": peak,
-        "method": baked.kind().name(),
+        "method": baked.kind.name(),
         "out": path,
         "bytes": std::fs::metadata(path).map_or(0, |m| m.len()),
-        "vertices": baked.scene().mesh.vertex_count(),
-        "triangles": baked.scene().mesh.triangle_count(),
+        "vertices": baked.vertices,
+        "triangles": baked.triangles,
         "seconds": r.seconds,
         "backend": r.backend,
         "f16": r.f16,
-        "settings": serde_json::from_str::<serde_json::Value>(&baked.settings_json()).unwrap_or_default(),
+        "settings": serde_json::from_str::<serde_json::Value>(&baked.settings_json).unwrap_or_default(),
         "sg": extra,
     }));
 }
@@ -315,18 +364,13 @@ pub fn merge(a: MergeArgs, out: &Out) -> Result<()> {
     let inputs: Vec<&Path> = a.parts.iter().map(PathBuf::as_path).collect();
     relight_bundle::output::check_outputs(&[&a.out], &["relight"], &inputs)?;
     let t0 = std::time::Instant::now();
-    let parts = a
-        .parts
-        .iter()
-        .map(|p| Ok((p.clone(), relight_method::read_any(p)?)));
-    let whole = relight_method::shard::merge(parts)?;
-    whole.write(&a.out)?;
+    let whole = relight_method::shard::merge_files(&a.parts, &a.out)?;
     out.line(format!(
         "merged {} parts into {} ({:.2} MiB, {} vertices) in {:.2} s",
         a.parts.len(),
         a.out.display(),
         args::mib(&a.out),
-        whole.scene().mesh.vertex_count(),
+        whole.vertices,
         t0.elapsed().as_secs_f64()
     ));
     out.summary(json!({
@@ -334,8 +378,8 @@ pub fn merge(a: MergeArgs, out: &Out) -> Result<()> {
         "parts": a.parts,
         "out": a.out,
         "bytes": std::fs::metadata(&a.out).map_or(0, |m| m.len()),
-        "vertices": whole.scene().mesh.vertex_count(),
-        "bake_seconds": whole.record().seconds,
+        "vertices": whole.vertices,
+        "bake_seconds": whole.record.seconds,
         "seconds": t0.elapsed().as_secs_f64(),
     }));
     Ok(())

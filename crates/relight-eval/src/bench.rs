@@ -145,6 +145,20 @@ pub fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// The resident memory of this process now, bytes (Linux `VmRSS`), if known.
+pub fn resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kib: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib << 10)
+}
+
 /// Reset the peak of [`peak_rss_mib`] to the current resident memory (Linux: `5` written to
 /// `/proc/self/clear_refs`); does nothing where that is not possible.
 pub fn reset_peak_rss() {

@@ -13,8 +13,10 @@
 //! * What can be split can be checkpointed: `sh` with unshadowed or shadowed transfer (chunks
 //!   of vertices) and `sg` (chunks of flood-fill regions, so at most one chunk per region).
 
-use crate::shard::{bake_part, merge, Shard};
-use crate::{read_any, BakeContext, BakeInput, Baked, BakedScene, Method, MethodError};
+use crate::shard::{bake_part, merge_files, Shard};
+use crate::{
+    read_any, BakeContext, BakeInput, BakeSummary, Baked, BakedScene, Method, MethodError,
+};
 use std::path::{Path, PathBuf};
 
 /// The checkpoint folder of the output `out`.
@@ -46,7 +48,9 @@ fn chunks(dir: &Path) -> Result<Vec<(usize, usize, PathBuf)>, MethodError> {
 
 /// Bake `input` with `M` in chunks of about `chunk_vertices` vertices, checkpointed in
 /// [`folder`]`(out)`, resuming from the chunks there when `resume`; writes `out` and removes
-/// the folder. `done(i, n)` is called after each chunk (progress).
+/// the folder. `done(i, n)` is called after each chunk (progress). The final merge streams
+/// the chunks into `out` ([`merge_files`]), so an `sh` bake never holds more than a chunk of
+/// rows: what `relight bake --memory-limit` relies on.
 ///
 /// # Errors
 /// A checkpoint found without `resume` (the message says what it holds and what to do), one
@@ -59,7 +63,7 @@ pub fn bake_resumable<M: Method>(
     chunk_vertices: usize,
     resume: bool,
     mut done: impl FnMut(usize, usize),
-) -> Result<Baked, MethodError>
+) -> Result<BakeSummary, MethodError>
 where
     M::Baked: Into<Baked>,
 {
@@ -120,14 +124,10 @@ where
         }
         done(index, n);
     }
-    let parts = have
-        .into_iter()
-        .flatten()
-        .map(|p| Ok((p.clone(), read_any(&p)?)));
-    let mut whole = merge(parts)?;
-    whole.write(out)?;
+    let paths: Vec<PathBuf> = have.into_iter().flatten().collect();
+    let mut whole = merge_files(&paths, out)?;
     // The time of the chunks baked by this run (a resumed run does not redo the others).
-    whole.record_mut().seconds = seconds;
+    whole.record.seconds = seconds;
     std::fs::remove_dir_all(&dir)
         .map_err(|e| MethodError::Settings(format!("{}: {e}", dir.display())))?;
     Ok(whole)

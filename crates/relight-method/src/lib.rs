@@ -40,6 +40,7 @@
 pub mod checkpoint;
 mod error;
 pub mod hybrid;
+pub mod memory;
 pub mod sg;
 pub mod sh;
 pub mod shard;
@@ -184,6 +185,13 @@ pub trait Method {
         range: Range<usize>,
         ctx: &BakeContext,
     ) -> Result<Self::Baked, MethodError>;
+
+    /// Bytes of one vertex's rows of the bake in memory ([`crate::memory`]).
+    fn row_bytes(input: BakeInput, settings: &Self::Settings) -> u64;
+
+    /// `None` if the bake can be baked in chunks and merged by streaming; else why not
+    /// ([`crate::memory`]).
+    fn streams(settings: &Self::Settings) -> Option<&'static str>;
 
     /// What one unit of a sharded bake is ([`Method::max_parts`]), for messages.
     const PART_UNIT: &'static str = "vertex";
@@ -356,6 +364,41 @@ impl Baked {
         settings: &FrameSettings,
     ) -> Result<Box<dyn Frame + Sync + '_>, MethodError> {
         self.frame_of(settings, Path::new("<bake>"))
+    }
+}
+
+/// What a report of a written bake needs, without its rows (a streamed merge never holds them
+/// all): kind, record, sizes, settings and the method's description.
+#[derive(Clone, Debug)]
+pub struct BakeSummary {
+    /// Its kind.
+    pub kind: BakeKind,
+    /// How it was baked (seconds: of this run's baking).
+    pub record: store::BakeRecord,
+    /// Vertices of the mesh.
+    pub vertices: usize,
+    /// Triangles of the mesh.
+    pub triangles: usize,
+    /// The settings as recorded (JSON).
+    pub settings_json: String,
+    /// The method's own lines and JSON (`sg`'s fit statistics), if it has any.
+    pub describe: Option<(Vec<String>, serde_json::Value)>,
+}
+
+impl BakeSummary {
+    /// The summary of a bake in memory.
+    pub fn of(b: &Baked) -> BakeSummary {
+        BakeSummary {
+            kind: b.kind(),
+            record: b.record().clone(),
+            vertices: b.scene().mesh.vertex_count(),
+            triangles: b.scene().mesh.triangle_count(),
+            settings_json: b.settings_json(),
+            describe: match b {
+                Baked::Sg(sg) => Some(sg.describe()),
+                Baked::Sh(_) => None,
+            },
+        }
     }
 }
 

@@ -297,6 +297,21 @@ impl Method for Sg {
         })
     }
 
+    /// Lobes of every view (each `SgLobe` 28 bytes), the diffuse SH, the fit errors.
+    fn row_bytes(_: BakeInput, s: &SgSettings) -> u64 {
+        let views = 10 * sg::VIEW_FREQUENCY.pow(2) as u64 + 2;
+        let b = &s.bake;
+        let lobes = (b.direct_lobes + b.indirect_lobes) as u64;
+        let comps = 1 + u64::from(b.indirect_lobes > 0);
+        views * lobes * 28
+            + relight_sphere::sh::sh_count(b.diffuse_order) as u64 * 4
+            + comps * views * 4
+    }
+
+    fn streams(_: &SgSettings) -> Option<&'static str> {
+        Some("the sg merge aligns flood-fill regions over the whole mesh")
+    }
+
     /// One part per flood-fill region at most.
     fn max_parts(input: BakeInput, settings: &SgSettings) -> usize {
         sg::region_plan(&input.scene.mesh, &settings.bake).region_count()

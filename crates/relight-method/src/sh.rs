@@ -24,6 +24,10 @@ use std::time::Instant;
 /// The `sh` method's bake verbs.
 pub struct Sh;
 
+/// The tensors of an `sh` bundle with one row per vertex ([`Sh::store`]): what a merge
+/// concatenates over the parts ([`crate::shard::merge_files`]).
+pub const ROW_TENSORS: [&str; 2] = ["albedo", "transfer"];
+
 /// Everything an `sh` bundle holds.
 #[derive(Clone, Debug)]
 pub struct ShBaked {
@@ -151,6 +155,16 @@ impl Method for Sh {
                 n,
             ),
         })
+    }
+
+    /// The transfer (every array a pass holds) and the albedo.
+    fn row_bytes(_: BakeInput, s: &ShBakeSettings) -> u64 {
+        relight_bake::sh::transfer_bytes(s, 1) as u64 + 12
+    }
+
+    fn streams(s: &ShBakeSettings) -> Option<&'static str> {
+        (s.transfer == ShTransferKind::Interreflected)
+            .then_some("each interreflection bounce gathers the previous bounce of every vertex")
     }
 
     fn store(b: &ShBaked) -> Result<Bundle, MethodError> {

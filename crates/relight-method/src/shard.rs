@@ -32,6 +32,8 @@ use crate::sg::{SgBaked, SgPartRows};
 use crate::{sh::ShBaked, BakeContext, BakeInput, BakeKind, Baked, Method, MethodError};
 use relight_bake::sg::{self, SgBake};
 use relight_bake::sh::ShTransfer;
+use relight_bundle::stream::TensorSpec;
+use relight_bundle::{Bundle, BundleError};
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -136,104 +138,31 @@ pub fn merge<I>(parts: I) -> Result<Baked, MethodError>
 where
     I: IntoIterator<Item = Result<(PathBuf, Baked), MethodError>>,
 {
-    let err = |path: &Path, message: String| MethodError::Merge {
-        path: path.to_path_buf(),
-        message,
-    };
     let mut parts = parts.into_iter();
     let Some(first) = parts.next() else {
         return Err(MethodError::Settings("merge: no parts given".into()));
     };
     let (first_path, first) = first?;
-    let Some(s0) = first.record().shard else {
-        return Err(err(&first_path, "is not a part of a sharded bake".into()));
-    };
-    // What every other part must share with the first (its scene's bytes, taken once).
-    let kind0 = first.kind();
-    let settings0 = first.settings_json();
-    let (backend0, f16_0) = (first.record().backend.clone(), first.record().f16);
-    let scene0 = first.scene().fingerprint()?;
-    let v = first.scene().mesh.vertex_count();
+    let mut check = Checker::new(&first_path, &first)?;
+    let first_path = check.first_path.clone();
     // slot[i]: part i's path and rows (its scene dropped, but for the first part's).
-    let mut slot: Vec<Option<(PathBuf, Baked)>> = (0..s0.count).map(|_| None).collect();
+    let mut slot: Vec<Option<(PathBuf, Baked)>> = (0..check.count).map(|_| None).collect();
     let mut scene = None;
     for (nth, part) in std::iter::once(Ok((first_path.clone(), first)))
         .chain(parts)
         .enumerate()
     {
         let (path, mut b) = part?;
-        let r = b.record();
-        let Some(s) = r.shard else {
-            return Err(err(&path, "is not a part of a sharded bake".into()));
-        };
-        let differs = |what: &str| {
-            err(
-                &path,
-                format!("its {what} differs from that of {}", first_path.display()),
-            )
-        };
-        if s.count != s0.count {
-            return Err(err(
-                &path,
-                format!(
-                    "is part {}/{} but {} is part {}/{}: they come from bakes split differently",
-                    s.index,
-                    s.count,
-                    first_path.display(),
-                    s0.index,
-                    s0.count
-                ),
-            ));
-        }
-        if nth > 0 {
-            if b.kind() != kind0 {
-                return Err(differs("method"));
-            }
-            if b.settings_json() != settings0 {
-                return Err(differs("settings (or seed)"));
-            }
-            if (&r.backend, r.f16) != (&backend0, f16_0) {
-                return Err(differs("back-end or storage precision"));
-            }
-            if b.scene().fingerprint()? != scene0 {
-                return Err(differs("scene"));
-            }
-        }
-        let want = s.range(v);
-        if b.kind() == BakeKind::Sh && r.range.unwrap_or((0, v)) != (want.start, want.end) {
-            return Err(err(
-                &path,
-                format!(
-                    "holds vertices {:?} but part {}/{} is {want:?}",
-                    r.range, s.index, s.count
-                ),
-            ));
-        }
-        if let Some((other, _)) = &slot[s.index] {
-            return Err(err(
-                &path,
-                format!(
-                    "part {}/{} is given twice (also {})",
-                    s.index,
-                    s.count,
-                    other.display()
-                ),
-            ));
-        }
+        let index = check.check(nth, &path, &b)?;
         let taken = b.take_scene();
         scene.get_or_insert(taken);
-        slot[s.index] = Some((path, b));
+        slot[index] = Some((path, b));
     }
-    let missing: Vec<String> = (0..s0.count)
-        .filter(|&i| slot[i].is_none())
-        .map(|i| i.to_string())
-        .collect();
-    if !missing.is_empty() {
-        return Err(err(
-            &first_path,
-            format!("parts {} of {} are missing", missing.join(", "), s0.count),
-        ));
-    }
+    check.complete()?;
+    let err = |path: &Path, message: String| MethodError::Merge {
+        path: path.to_path_buf(),
+        message,
+    };
     let paths: Vec<PathBuf> = slot.iter().flatten().map(|(p, _)| p.clone()).collect();
     let mut it = slot.into_iter().flatten().map(|(_, b)| b);
     let mut whole = match it.next() {
@@ -284,6 +213,217 @@ where
     };
     valid.map_err(|e| err(&first_path, format!("merged bake: {e}")))?;
     Ok(whole)
+}
+
+/// What every part of one bake must share with the first (its scene's bytes taken once), and
+/// which parts came.
+struct Checker {
+    first_path: PathBuf,
+    first: Shard,
+    count: usize,
+    kind: BakeKind,
+    settings: String,
+    backend: (String, bool),
+    scene: Vec<u8>,
+    vertices: usize,
+    seen: Vec<Option<PathBuf>>,
+}
+
+impl Checker {
+    fn new(first_path: &Path, first: &Baked) -> Result<Checker, MethodError> {
+        let Some(s0) = first.record().shard else {
+            return Err(MethodError::Merge {
+                path: first_path.to_path_buf(),
+                message: "is not a part of a sharded bake".into(),
+            });
+        };
+        Ok(Checker {
+            first_path: first_path.to_path_buf(),
+            first: s0,
+            count: s0.count,
+            kind: first.kind(),
+            settings: first.settings_json(),
+            backend: (first.record().backend.clone(), first.record().f16),
+            scene: first.scene().fingerprint()?,
+            vertices: first.scene().mesh.vertex_count(),
+            seen: vec![None; s0.count],
+        })
+    }
+
+    /// Check the `nth` part given (read from `path`) and return its part number.
+    fn check(&mut self, nth: usize, path: &Path, b: &Baked) -> Result<usize, MethodError> {
+        let err = |message: String| MethodError::Merge {
+            path: path.to_path_buf(),
+            message,
+        };
+        let r = b.record();
+        let Some(s) = r.shard else {
+            return Err(err("is not a part of a sharded bake".into()));
+        };
+        let differs = |what: &str| {
+            err(format!(
+                "its {what} differs from that of {}",
+                self.first_path.display()
+            ))
+        };
+        if s.count != self.count {
+            return Err(err(format!(
+                "is part {}/{} but {} is part {}/{}: they come from bakes split differently",
+                s.index,
+                s.count,
+                self.first_path.display(),
+                self.first.index,
+                self.first.count
+            )));
+        }
+        if nth > 0 {
+            if b.kind() != self.kind {
+                return Err(differs("method"));
+            }
+            if b.settings_json() != self.settings {
+                return Err(differs("settings (or seed)"));
+            }
+            if (&r.backend, r.f16) != (&self.backend.0, self.backend.1) {
+                return Err(differs("back-end or storage precision"));
+            }
+            if b.scene().fingerprint()? != self.scene {
+                return Err(differs("scene"));
+            }
+        }
+        let v = self.vertices;
+        let want = s.range(v);
+        if b.kind() == BakeKind::Sh && r.range.unwrap_or((0, v)) != (want.start, want.end) {
+            return Err(err(format!(
+                "holds vertices {:?} but part {}/{} is {want:?}",
+                r.range, s.index, s.count
+            )));
+        }
+        if let Some(other) = &self.seen[s.index] {
+            return Err(err(format!(
+                "part {}/{} is given twice (also {})",
+                s.index,
+                s.count,
+                other.display()
+            )));
+        }
+        self.seen[s.index] = Some(path.to_path_buf());
+        Ok(s.index)
+    }
+
+    /// Every part came.
+    fn complete(&self) -> Result<(), MethodError> {
+        let missing: Vec<String> = (0..self.count)
+            .filter(|&i| self.seen[i].is_none())
+            .map(|i| i.to_string())
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        Err(MethodError::Merge {
+            path: self.first_path.clone(),
+            message: format!("parts {} of {} are missing", missing.join(", "), self.count),
+        })
+    }
+}
+
+/// [`merge`] the part bundles `paths` (any order) into the bundle `out`, written atomically,
+/// with memory bounded by one part for methods whose merge concatenates rows (`sh`): the
+/// parts are read once to check them, then the output's tensors are streamed in name order,
+/// each from the parts in turn ([`relight_bundle::stream`]). An `sg` merge aligns regions
+/// over the whole mesh, so it holds the whole bake. The file is the one [`merge`] then
+/// [`Baked::write`] would write.
+///
+/// # Errors
+/// As [`merge`], and IO errors naming the file.
+pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<crate::BakeSummary, MethodError> {
+    let Some(first_path) = paths.first() else {
+        return Err(MethodError::Settings("merge: no parts given".into()));
+    };
+    let first = crate::read_any(first_path)?;
+    if first.kind() != BakeKind::Sh {
+        let rest = paths[1..]
+            .iter()
+            .map(|p| Ok((p.clone(), crate::read_any(p)?)));
+        let whole = merge(std::iter::once(Ok((first_path.clone(), first))).chain(rest))?;
+        whole.write(out)?;
+        return Ok(crate::BakeSummary::of(&whole));
+    }
+    let mut check = Checker::new(first_path, &first)?;
+    let mut order: Vec<PathBuf> = vec![PathBuf::new(); check.count];
+    let mut head = None;
+    for (nth, path) in paths.iter().enumerate() {
+        let b = if nth == 0 {
+            first.clone()
+        } else {
+            crate::read_any(path)?
+        };
+        let index = check.check(nth, path, &b)?;
+        order[index] = path.clone();
+        if index == 0 {
+            head = Some(b);
+        }
+    }
+    drop(first);
+    check.complete()?;
+    let mut head = head.expect("part 0 is there");
+    let r = head.record_mut();
+    (r.range, r.shard) = (None, None);
+    let v = check.vertices;
+    let rows = crate::sh::ROW_TENSORS;
+    let bundle = head.to_bundle()?;
+    let specs: Vec<TensorSpec> = bundle
+        .tensors
+        .iter()
+        .map(|(name, t)| {
+            let mut shape = t.shape.clone();
+            if rows.contains(&name.as_str()) {
+                shape[0] = v;
+            }
+            TensorSpec {
+                name: name.clone(),
+                dtype: t.dtype,
+                shape,
+            }
+        })
+        .collect();
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |error| BundleError::Io { path, error }
+    };
+    relight_bundle::stream::write_streamed(out, &bundle.metadata, &specs, |spec, sink| {
+        if !rows.contains(&spec.name.as_str()) {
+            return sink
+                .write(&bundle.tensors[&spec.name].bytes)
+                .map_err(io(out));
+        }
+        for (i, path) in order.iter().enumerate() {
+            let part = Bundle::read(path)?;
+            let t = part.tensor(path, &spec.name)?;
+            let want = Shard {
+                index: i,
+                count: order.len(),
+            }
+            .range(v)
+            .len();
+            if t.dtype != spec.dtype || t.shape[1..] != spec.shape[1..] || t.shape[0] != want {
+                return Err(BundleError::Invalid {
+                    path: path.clone(),
+                    msg: format!(
+                        "tensor '{}' is {} {:?}, expected {} [{want}, ...] (changed since it was checked?)",
+                        spec.name,
+                        t.dtype.name(),
+                        t.shape,
+                        spec.dtype.name()
+                    ),
+                });
+            }
+            sink.write(&t.bytes).map_err(io(out))?;
+        }
+        Ok(())
+    })?;
+    let mut summary = crate::BakeSummary::of(&head);
+    summary.vertices = v;
+    Ok(summary)
 }
 
 /// The whole `sg` bake from its parts `all` in part order (`paths` name them):

@@ -1,8 +1,51 @@
-//! Mesh clean-up: welding, smooth normals, degenerate and unused geometry, validation.
+//! Mesh clean-up: welding, smooth normals, degenerate and unused geometry, validation; midpoint
+//! subdivision.
 
 use crate::mesh::TriMesh;
 use crate::Vec3;
 use std::collections::HashMap;
+
+/// Most levels of [`subdivide_midpoint`] a scene may ask (each multiplies the triangles by 4).
+pub const MAX_SUBDIVISION: u32 = 6;
+
+/// One level of midpoint subdivision: every triangle `(a, b, c)` becomes four, through one new
+/// vertex per edge (shared by the edge's triangles) at the edge's midpoint, with the
+/// normalised mean of the endpoints' normals (the first endpoint's where they cancel) and the
+/// mean of their texture coordinates. The surface is unchanged (no smoothing); vertices
+/// `0..V` keep their indices, new ones follow in order of first use.
+pub fn subdivide_midpoint(mesh: &TriMesh) -> TriMesh {
+    let mut out = TriMesh {
+        positions: mesh.positions.clone(),
+        normals: mesh.normals.clone(),
+        uvs: mesh.uvs.clone(),
+        indices: Vec::with_capacity(mesh.indices.len() * 4),
+        material_ids: Vec::with_capacity(mesh.material_ids.len() * 4),
+    };
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.indices.len() * 3 / 2);
+    let mut midpoint = |a: u32, b: u32, out: &mut TriMesh| -> u32 {
+        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            let (i, j) = (a as usize, b as usize);
+            out.positions
+                .push((mesh.positions[i] + mesh.positions[j]) * 0.5);
+            let n = mesh.normals[i] + mesh.normals[j];
+            out.normals
+                .push(n.try_normalize().unwrap_or(mesh.normals[i]));
+            if let (Some(uv), Some(src)) = (out.uvs.as_mut(), mesh.uvs.as_ref()) {
+                uv.push((src[i] + src[j]) * 0.5);
+            }
+            (out.positions.len() - 1) as u32
+        })
+    };
+    for (&[a, b, c], &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+        let ab = midpoint(a, b, &mut out);
+        let bc = midpoint(b, c, &mut out);
+        let ca = midpoint(c, a, &mut out);
+        out.indices
+            .extend_from_slice(&[[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        out.material_ids.extend_from_slice(&[m; 4]);
+    }
+    out
+}
 
 /// How face normals are weighted when averaged into vertex normals.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -366,5 +409,42 @@ mod tests {
         let mut m = unwelded_cube();
         m.material_ids.pop();
         assert!(validate(&m).is_err());
+    }
+
+    #[test]
+    fn midpoint_subdivision_keeps_the_surface_and_its_closure() {
+        let m = weld(&unwelded_cube(), 1e-5);
+        let (v, t) = (m.vertex_count(), m.triangle_count());
+        let area = |m: &TriMesh| -> f32 {
+            m.indices
+                .iter()
+                .map(|&[a, b, c]| {
+                    let p = |i: u32| m.positions[i as usize];
+                    0.5 * (p(b) - p(a)).cross(p(c) - p(a)).length()
+                })
+                .sum()
+        };
+        let s = subdivide_midpoint(&m);
+        // A closed mesh: E = 3T/2 new vertices, 4T triangles, the same area, and every
+        // edge still shared by exactly two triangles.
+        assert_eq!(s.vertex_count(), v + 3 * t / 2);
+        assert_eq!(s.triangle_count(), 4 * t);
+        assert_eq!(s.material_ids.len(), 4 * t);
+        assert!(
+            (area(&s) - area(&m)).abs() < 1e-4,
+            "{} {}",
+            area(&s),
+            area(&m)
+        );
+        let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+        for &[a, b, c] in &s.indices {
+            for (x, y) in [(a, b), (b, c), (c, a)] {
+                *edges.entry((x.min(y), x.max(y))).or_default() += 1;
+            }
+        }
+        assert!(edges.values().all(|&n| n == 2));
+        assert_eq!(&s.positions[..v], &m.positions[..]);
+        assert!(s.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+        validate(&s).unwrap();
     }
 }

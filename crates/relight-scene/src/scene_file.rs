@@ -96,6 +96,11 @@ pub enum ShapeDesc {
         /// Override of the file's materials.
         #[serde(default)]
         material: Option<Material>,
+        /// Levels of midpoint subdivision after loading (1 to
+        /// [`meshops::MAX_SUBDIVISION`]; each multiplies the triangles by 4): a dense mesh
+        /// from a shared one (the 1M-vertex bake of docs/RESULTS.md).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        subdivide: Option<u32>,
     },
     /// A tessellated sphere.
     Sphere {
@@ -447,8 +452,10 @@ impl ShapeDesc {
                 fit,
                 weld,
                 material,
+                subdivide,
                 ..
             } => {
+                check_count("subdivide", *subdivide, 1..=meshops::MAX_SUBDIVISION)?;
                 if let Some(f) = fit {
                     check_point("fit.base", f.base)?;
                     check_length("fit.height", f.height)?;
@@ -603,8 +610,15 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
             fit,
             weld,
             material,
+            subdivide,
         } => {
-            let loaded = io::load_mesh_with(file, opts)?;
+            let levels = subdivide.unwrap_or(0);
+            let growth = 1u64 << (2 * levels);
+            let budget = LoadOptions {
+                max_triangles: (opts.max_triangles as u64 / growth) as usize,
+                ..*opts
+            };
+            let loaded = io::load_mesh_with(file, &budget)?;
             // Loading carries on past recoverable problems; tell the user about each.
             for w in &loaded.warnings {
                 eprintln!("warning: {w}");
@@ -615,6 +629,9 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
                 meshops::drop_degenerate(&mut mesh);
                 meshops::remove_unused_vertices(&mut mesh);
                 mesh.normals = meshops::smooth_normals(&mesh, meshops::NormalWeighting::Angle);
+            }
+            for _ in 0..levels {
+                mesh = meshops::subdivide_midpoint(&mesh);
             }
             if let Some(f) = fit {
                 let (lo, hi) = mesh

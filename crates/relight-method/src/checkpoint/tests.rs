@@ -22,7 +22,12 @@ fn tmp(tag: &str) -> PathBuf {
     d
 }
 
-fn resumable(radius: f32, out: &Path, chunk: usize, resume: bool) -> Result<Baked, MethodError> {
+fn resumable(
+    radius: f32,
+    out: &Path,
+    chunk: usize,
+    resume: bool,
+) -> Result<BakeSummary, MethodError> {
     with_input(radius, |input| {
         bake_resumable::<Sh>(
             input,

@@ -211,3 +211,33 @@ fn corrupt_part_and_merged_bundles_are_detected() {
         }
     }
 }
+
+#[test]
+fn streamed_merges_of_part_files_are_the_whole_bake_byte_for_byte() {
+    let d = std::env::temp_dir().join(format!("relight-merge-files-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let s = settings(ShTransferKind::Shadowed, 6);
+    let whole = bytes(&bake(0.5, &s, None).unwrap());
+    let mut paths = vec![];
+    for (path, b) in parts(0.5, &s, 3) {
+        let p = d.join(path);
+        b.write(&p).unwrap();
+        paths.push(p);
+    }
+    paths.rotate_left(1);
+    let out = d.join("merged.relight");
+    let summary = merge_files(&paths, &out).unwrap();
+    assert!(std::fs::read(&out).unwrap() == whole);
+    assert_eq!(
+        summary.vertices,
+        with_input(0.5, |i| i.scene.mesh.vertex_count())
+    );
+    assert!(summary.record.shard.is_none() && summary.record.range.is_none());
+    // A missing part: refused by name, nothing written.
+    let out2 = d.join("not.relight");
+    let e = merge_files(&paths[..2], &out2).unwrap_err().to_string();
+    assert!(e.contains("missing"), "{e}");
+    assert!(!out2.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
