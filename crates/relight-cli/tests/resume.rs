@@ -102,3 +102,56 @@ fn a_bake_killed_at_any_moment_resumes_to_the_same_bytes() {
     );
     assert!(!ckpt.exists(), "the checkpoint is removed at the end");
 }
+
+#[test]
+fn a_bake_over_its_memory_limit_is_chunked_to_the_same_bytes_or_refused() {
+    let d = tmpdir("resume", "memory");
+    let s = scene(&d);
+    let (s, whole) = (s.to_str().unwrap(), d.join("whole.relight"));
+    // At SH order 24 (2.3 KB per vertex) a whole bake is estimated at about 54 MiB, 10 of
+    // them before the rows: 32 MiB leaves room for chunks only.
+    let out = d.join("limited.relight");
+    let mut a = args(s, out.to_str().unwrap());
+    a.extend(["--sh-order", "24", "--memory-limit", "32M"]);
+    let mut w = args(s, whole.to_str().unwrap());
+    w.extend(["--sh-order", "24"]);
+    let o = relight(&w);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relight(&a);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("baking chunks of") && err.contains("chunk 2 of"),
+        "{err}"
+    );
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(&whole).unwrap());
+    assert!(!d.join("limited.relight.checkpoint").exists());
+    // sg cannot stream its merge: refused with the estimate, nothing written.
+    let sg = d.join("sg.relight");
+    let o = relight(&[
+        "bake",
+        s,
+        "--method",
+        "sg",
+        "--memory-limit",
+        "40M",
+        "-o",
+        sg.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert!(
+        !o.status.success() && err.contains("GiB") && err.contains("sg merge"),
+        "{err}"
+    );
+    assert!(!sg.exists());
+    // A size that is not one.
+    let o = relight(&[
+        "bake",
+        s,
+        "--memory-limit",
+        "lots",
+        "-o",
+        sg.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("not a size"));
+}

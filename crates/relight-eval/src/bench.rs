@@ -7,8 +7,9 @@
 //!    from the surface of a ~100K-triangle mesh, as a ratio to Embree 3.
 //! 2. [`sh_bake`]: SH bake time of bunny_watertight.obj (order 4, 1024 samples, shadowed + 1
 //!    bounce), and its overhead over casting the same rays with nothing else done.
-//!    [`shard`]: the same mesh's shadowed bake in N = 1, 2, 4 parts plus the merge, against
-//!    the one-process bake (and whether the merged bundle is byte-identical).
+//!    [`shard`]: the same mesh's shadowed `sh` bake and a small `sg` bake, each in N = 1, 2,
+//!    4 parts plus the merge, against the one-process bake (and whether the merged bundle is
+//!    byte-identical).
 //! 3. [`relight`]: SH relight time per frame for 1M vertices at order 5, against a
 //!    STREAM-like copy.
 //! 4. [`projection`]: exact SH projection of a latlong map against the point rule.
@@ -269,7 +270,9 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
     }
     if on("shard") {
-        push(shard::section(&a.bake_mesh, &a.data, a.quick)?);
+        for s in shard::section(&a.bake_mesh, &a.data, a.quick)? {
+            push(s);
+        }
     }
     let verts = if a.quick {
         a.relight_vertices.min(200_000)

@@ -202,17 +202,35 @@ impl PartFit {
     /// # Errors
     /// A message if two parts hold the same vertex or their layouts differ.
     pub fn join(parts: Vec<PartFit>) -> Result<PartFit, String> {
-        let Some(first) = parts.first() else {
+        // The layout is read from a part with vertices (any part, if none has).
+        let Some(first) = parts
+            .iter()
+            .find(|p| !p.vertices.is_empty())
+            .or(parts.first())
+        else {
             return Err("no parts".into());
         };
         let comps = first.lobes.len();
         let stride = first.diffuse_stride;
         let row = |p: &PartFit, c: usize| p.lobes[c].len() / p.vertices.len().max(1);
         let rows: Vec<usize> = (0..comps).map(|c| row(first, c)).collect();
+        let views = first
+            .errors
+            .first()
+            .map_or(0, |e| e.len() / first.vertices.len().max(1));
         let mut owner: Vec<(u32, usize, usize)> = vec![]; // (vertex, part, row)
         for (pi, p) in parts.iter().enumerate() {
-            if p.lobes.len() != comps || p.diffuse_stride != stride {
-                return Err(format!("part {pi} has another layout than part 0"));
+            let n = p.vertices.len();
+            let sized = |c: usize| {
+                p.lobes[c].len() == n * rows[c]
+                    && p.errors.get(c).is_some_and(|e| e.len() == n * views)
+            };
+            if p.lobes.len() != comps
+                || p.diffuse_stride != stride
+                || p.diffuse_sh.len() != n * stride
+                || !(0..comps).all(sized)
+            {
+                return Err(format!("part {pi} has another layout than the others"));
             }
             owner.extend(p.vertices.iter().enumerate().map(|(i, &x)| (x, pi, i)));
         }
@@ -234,8 +252,8 @@ impl PartFit {
         };
         for &(_, pi, i) in &owner {
             let p = &parts[pi];
-            for c in 0..comps {
-                out.lobes[c].extend_from_slice(&p.lobes[c][i * rows[c]..(i + 1) * rows[c]]);
+            for (c, &n) in rows.iter().enumerate() {
+                out.lobes[c].extend_from_slice(&p.lobes[c][i * n..(i + 1) * n]);
                 out.errors[c].extend_from_slice(&p.errors[c][i * views..(i + 1) * views]);
             }
             out.diffuse_sh

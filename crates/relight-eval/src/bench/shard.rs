@@ -1,9 +1,12 @@
-//! Sharded SH bake (section "Sharded bake"): N parts baked one after the other and merged,
-//! against the one-process bake of the same scene and seed measured in the same run.
+//! Sharded bakes (sections "Sharded bake"): N parts baked one after the other and merged,
+//! against the one-process bake of the same scene and seed measured in the same run; for `sh`
+//! (vertex ranges) and `sg` (flood-fill regions).
 
 use super::Section;
 use crate::{EvalError, Result};
+use relight_bake::sg::{SgBakeSettings, SgFitSettings};
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_method::sg::{Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::shard::{bake_part, merge, Shard};
 use relight_method::{BakeContext, BakeInput, Baked, Method};
@@ -12,9 +15,10 @@ use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The section: a shadowed order-4 bake (1024 samples, 128 with `quick`) of `bake_mesh`, else
-/// `<data>/data/meshes/bunny_watertight.obj`, else a procedural sphere, split into N = 1, 2
-/// and 4 parts. Per N: the parts' total and slowest time (on a cluster the parts run at once,
+/// The sections, on `bake_mesh`, else `<data>/data/meshes/bunny_watertight.obj`, else a
+/// procedural sphere, on a plane: a shadowed order-4 `sh` bake (1024 samples, 128 with
+/// `quick`), and an `sg` bake of one direct lobe on 6x8x8 cube maps with SH order 3 (20 fit
+/// iterations, 4 with `quick`), each split into N = 1, 2 and 4 parts. Per N: the parts' total and slowest time (on a cluster the parts run at once,
 /// so the wall time is the slowest part plus the merge), the merge (checks + serialising the
 /// bundle, without disk IO), the overhead (parts + merge) / one process, and whether the
 /// merged bundle is byte-identical to the one-process one.
@@ -25,7 +29,7 @@ pub(super) fn section(
     bake_mesh: &Option<PathBuf>,
     data: &Option<PathBuf>,
     quick: bool,
-) -> Result<Section> {
+) -> Result<Vec<Section>> {
     let path = bake_mesh.clone().or_else(|| {
         data.as_ref()
             .map(|d| d.join("data/meshes/bunny_watertight.obj"))
@@ -59,25 +63,65 @@ pub(super) fn section(
         scene: &scene,
         origin: &origin,
     };
-    let settings = ShBakeSettings {
+    let name = path
+        .as_ref()
+        .map_or("procedural sphere".into(), |p| p.display().to_string());
+    let sh = ShBakeSettings {
         order: 4,
         samples: if quick { 128 } else { 1024 },
         seed: 1,
         transfer: ShTransferKind::Shadowed,
         ..Default::default()
     };
+    let sg = SgSettings {
+        bake: SgBakeSettings {
+            direct_res: 8,
+            indirect_lobes: 0,
+            diffuse_order: 3,
+            fit: SgFitSettings {
+                max_iterations: if quick { 4 } else { 20 },
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+        blend: None,
+    };
+    Ok(vec![
+        measure::<Sh>(
+            input,
+            &sh,
+            format!(
+                "Sharded bake: {name} ({} vertices), SH order 4, {} samples, shadowed",
+                scene.mesh.vertex_count(),
+                sh.samples
+            ),
+        )?,
+        measure::<Sg>(
+            input,
+            &sg,
+            format!(
+                "Sharded sg bake: {name} ({} vertices, {} flood-fill regions), 1 direct lobe, 6x8x8, SH order 3",
+                scene.mesh.vertex_count(),
+                relight_bake::sg::region_plan(&scene.mesh, &sg.bake).region_count()
+            ),
+        )?,
+    ])
+}
+
+/// One method's section (see [`section`]).
+fn measure<M: Method>(input: BakeInput, settings: &M::Settings, title: String) -> Result<Section>
+where
+    M::Baked: Into<Baked>,
+{
     let ctx = BakeContext::default();
     let t0 = Instant::now();
-    let whole: Baked = Sh::bake(input, &settings, 0..scene.mesh.vertex_count(), &ctx)?.into();
+    let v = input.scene.mesh.vertex_count();
+    let whole: Baked = M::bake(input, settings, 0..v, &ctx)?.into();
     let whole_s = t0.elapsed().as_secs_f64();
     let whole_bytes = whole.to_bundle()?.to_bytes();
+    drop(whole);
     let mut sec = Section::new(
-        format!(
-            "Sharded bake: {} ({} vertices), SH order 4, {} samples, shadowed; one process: {whole_s:.2} s",
-            path.as_ref().map_or("procedural sphere".into(), |p| p.display().to_string()),
-            scene.mesh.vertex_count(),
-            settings.samples,
-        ),
+        format!("{title}; one process: {whole_s:.2} s"),
         &[
             "parts N",
             "parts total (s)",
@@ -92,7 +136,7 @@ pub(super) fn section(
         let (mut total, mut slowest) = (0.0f64, 0.0f64);
         for index in 0..count {
             let t = Instant::now();
-            let p = bake_part::<Sh>(input, &settings, Shard { index, count }, &ctx)?;
+            let p = bake_part::<M>(input, settings, Shard { index, count }, &ctx)?;
             let s = t.elapsed().as_secs_f64();
             (total, slowest) = (total + s, slowest.max(s));
             parts.push(Ok((PathBuf::from(format!("part-{index}")), p)));

@@ -131,7 +131,7 @@ fn sg_parts_that_do_not_make_the_bake_are_refused() {
         "{e}"
     );
     // Relaxation refits across region borders after the fill.
-    let mut relaxed = s.clone();
+    let mut relaxed = s;
     relaxed.0.bake.fit.relax_sweeps = 1;
     let e = bake(&relaxed, Some(Shard { index: 0, count: 2 }))
         .err()
