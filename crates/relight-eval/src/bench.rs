@@ -270,9 +270,7 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         push(sh_bake::section(&a.bake_mesh, &a.data, a.quick)?);
     }
     if on("shard") {
-        for s in shard::section(&a.bake_mesh, &a.data, a.quick)? {
-            push(s);
-        }
+        shard::section(&a.bake_mesh, &a.data, a.quick, &mut push)?;
     }
     let verts = if a.quick {
         a.relight_vertices.min(200_000)

@@ -15,7 +15,8 @@ use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The sections, on `bake_mesh`, else `<data>/data/meshes/bunny_watertight.obj`, else a
+/// The sections (each given to `push` when measured, so that its peak memory is its own), on
+/// `bake_mesh`, else `<data>/data/meshes/bunny_watertight.obj`, else a
 /// procedural sphere, on a plane: a shadowed order-4 `sh` bake (1024 samples, 128 with
 /// `quick`), and an `sg` bake of one direct lobe on 6x8x8 cube maps with SH order 3 (20 fit
 /// iterations, 4 with `quick`), each split into N = 1, 2 and 4 parts. Per N: the parts' total and slowest time (on a cluster the parts run at once,
@@ -29,7 +30,8 @@ pub(super) fn section(
     bake_mesh: &Option<PathBuf>,
     data: &Option<PathBuf>,
     quick: bool,
-) -> Result<Vec<Section>> {
+    push: &mut dyn FnMut(Section),
+) -> Result<()> {
     let path = bake_mesh.clone().or_else(|| {
         data.as_ref()
             .map(|d| d.join("data/meshes/bunny_watertight.obj"))
@@ -86,26 +88,25 @@ pub(super) fn section(
         },
         blend: None,
     };
-    Ok(vec![
-        measure::<Sh>(
-            input,
-            &sh,
-            format!(
-                "Sharded bake: {name} ({} vertices), SH order 4, {} samples, shadowed",
-                scene.mesh.vertex_count(),
-                sh.samples
-            ),
-        )?,
-        measure::<Sg>(
-            input,
-            &sg,
-            format!(
-                "Sharded sg bake: {name} ({} vertices, {} flood-fill regions), 1 direct lobe, 6x8x8, SH order 3",
-                scene.mesh.vertex_count(),
-                relight_bake::sg::region_plan(&scene.mesh, &sg.bake).region_count()
-            ),
-        )?,
-    ])
+    push(measure::<Sh>(
+        input,
+        &sh,
+        format!(
+            "Sharded bake: {name} ({} vertices), SH order 4, {} samples, shadowed",
+            scene.mesh.vertex_count(),
+            sh.samples
+        ),
+    )?);
+    push(measure::<Sg>(
+        input,
+        &sg,
+        format!(
+            "Sharded sg bake: {name} ({} vertices, {} flood-fill regions), 1 direct lobe, 6x8x8, SH order 3",
+            scene.mesh.vertex_count(),
+            relight_bake::sg::region_plan(&scene.mesh, &sg.bake).region_count()
+        ),
+    )?);
+    Ok(())
 }
 
 /// One method's section (see [`section`]).
