@@ -44,7 +44,8 @@
 //! One lobe is the closed-form estimate (one EM step from anything). `K` lobes start from the
 //! `K - 1` fit by **splitting** one lobe: its samples' tangent-plane scatter (weighted by
 //! `s_i r_ij`) gives a principal direction `e` and spread `sigma`; the two children sit at
-//! `normalize(mu +- sigma e)` with half the weight and twice the concentration (at least 2).
+//! `normalize(mu +- sigma e)` with half the weight and twice the concentration (at least 2,
+//! at most `kappa_max`).
 //! If the scatter is zero, one child goes to the sample of the class farthest from `mu`.
 //! Every lobe is tried with [`EmOptions::split_trial_iterations`] EM steps and the best
 //! continues to convergence. If that ends below the `K - 1` fit's likelihood (possible, since a
@@ -93,8 +94,8 @@ pub struct EmOptions {
 impl Default for EmOptions {
     fn default() -> Self {
         EmOptions {
-            max_iterations: 500,
-            tolerance: 1e-10,
+            max_iterations: 300,
+            tolerance: 1e-8,
             kappa_max: KAPPA_MAX,
             split_trial_iterations: 8,
         }
@@ -110,7 +111,7 @@ pub struct EmFit {
     /// Mean weighted log-likelihood `sum_i s_i ln p(x_i) / sum_i s_i` of the fitted mixture
     /// (of its f64 parameters, before rounding to the f32 lobes).
     pub log_likelihood: f64,
-    /// EM iterations of the final run.
+    /// EM iterations spent on this fit (split trials included; 0 for a fallback).
     pub iterations: usize,
     /// Whether the final run met the tolerance (false: stopped at `max_iterations`).
     pub converged: bool,
@@ -399,7 +400,7 @@ pub fn log_likelihood(samples: &[WeightedDir], lobes: &[VmfLobe]) -> Option<f64>
 }
 
 /// Splits component `j` of `comps` (module docs) given the responsibilities `resp` of `comps`.
-fn split(data: &Data, comps: &[Comp], resp: &[f64], j: usize) -> Vec<Comp> {
+fn split(data: &Data, comps: &[Comp], resp: &[f64], j: usize, kappa_max: f64) -> Vec<Comp> {
     let k = comps.len();
     let c = comps[j];
     let (e1, e2) = tangent_frame(c.mu);
@@ -434,7 +435,7 @@ fn split(data: &Data, comps: &[Comp], resp: &[f64], j: usize) -> Vec<Comp> {
     let sigma = lambda.max(0.0).sqrt();
     let child = |mu: [f64; 3]| Comp {
         mu,
-        kappa: (2.0 * c.kappa).max(2.0),
+        kappa: (2.0 * c.kappa).max(2.0).min(kappa_max),
         log_pi: c.log_pi - std::f64::consts::LN_2,
     };
     let (m1, m2) = if sigma > 1e-12 && vn > 0.0 {
@@ -490,13 +491,15 @@ pub fn fit_em_nested(samples: &[WeightedDir], max_lobes: usize, opts: &EmOptions
         e_step(&data, &comps, &mut resp);
         // Try splitting every live lobe for a few iterations; continue the best.
         let mut best: Option<(Vec<Comp>, f64)> = None;
+        let mut trials = 0;
         for j in 0..comps.len() {
             if comps[j].log_pi == f64::NEG_INFINITY {
                 continue;
             }
-            let start = split(&data, &comps, &resp, j);
+            let start = split(&data, &comps, &resp, j, kappa_max);
             let mut r = vec![];
-            let (c, l, _, _) = run_em(&data, start, opts.split_trial_iterations, opts, &mut r);
+            let (c, l, it, _) = run_em(&data, start, opts.split_trial_iterations, opts, &mut r);
+            trials += it;
             if best.as_ref().is_none_or(|b| l > b.1) {
                 best = Some((c, l));
             }
@@ -505,6 +508,7 @@ pub fn fit_em_nested(samples: &[WeightedDir], max_lobes: usize, opts: &EmOptions
             Some((start, _)) => run_em(&data, start, opts.max_iterations, opts, &mut resp),
             None => (comps.clone(), f64::NEG_INFINITY, 0, true),
         };
+        let it = it + trials;
         if next_ll >= ll {
             comps = next;
             ll = next_ll;
