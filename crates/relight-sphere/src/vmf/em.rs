@@ -532,3 +532,5 @@ pub fn fit_em(samples: &[WeightedDir], n_lobes: usize, opts: &EmOptions) -> Opti
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod vs_lm;
