@@ -42,9 +42,9 @@
 //! # Closed forms (paper section 3, 4.1, appendix A)
 //! * Inner product: `int f1 f2 = alpha1 alpha2 c(kappa1) c(kappa2) / c(kappa_c)` with
 //!   `kappa_c = |kappa1 mu1 + kappa2 mu2|` (the product of two vMF densities is an unnormalised
-//!   vMF), evaluated in logs: `exp(h1 + h2 - h_c - D - ln 2 pi)` with
-//!   `D = kappa1 + kappa2 - kappa_c = 2 kappa1 kappa2 (1 - mu1 . mu2) / (kappa1 + kappa2 + kappa_c)`
-//!   (no cancellation, no overflow) ([`inner_product`]). The paper's eq. 8 prints
+//!   vMF), evaluated in logs: `exp(h1 + h2 - h_c - D - ln 2 pi)` with `D = kappa1 + kappa2 -
+//!   kappa_c = 2 kappa1 kappa2 (1 - mu1 . mu2) / (kappa1 + kappa2 + kappa_c)` (no
+//!   cancellation, no overflow) ([`inner_product`]). The paper's eq. 8 prints
 //!   `kappa_c = 1 / |mu0 kappa0 + mu1 kappa1|`; the appendix uses (and the algebra needs) the
 //!   norm itself.
 //! * Product: `f1 f2` is the vMF of axis `(kappa1 mu1 + kappa2 mu2) / kappa_c`, concentration
@@ -53,11 +53,41 @@
 //!   [`mean_cosine`]), and its inverse ([`kappa_from_mean_cosine`]), the maximum-likelihood
 //!   `kappa` of a mean resultant length (Banerjee et al. 2005, "Clustering on the unit
 //!   hypersphere using von Mises-Fisher distributions", JMLR 6, section 4).
-//! * Convolution (prefiltering, paper section 6.2): the spherical convolution of two vMFs is
-//!   axially symmetric about `mu1`, of integral `alpha1 alpha2`, but not a vMF. Its first Legendre moment
-//!   is the product of theirs (Funk-Hecke), so the vMF with `A(kappa3) = A(kappa1) A(kappa2)` is
-//!   the moment-matched approximation ([`convolve`]); its exact value at a direction is an inner
-//!   product ([`convolution_exact`]).
+//! * Convolution (prefiltering, paper section 6.2): the spherical convolution of a lobe with a
+//!   normalised vMF kernel is axially symmetric about `mu1`, of integral `alpha1`, but not a
+//!   vMF. Its first Legendre moment is the product of theirs (Funk-Hecke), so the vMF with
+//!   `A(kappa3) = A(kappa1) A(kappa2)` is the moment-matched approximation ([`convolve`]); its
+//!   exact value at a direction is an inner product ([`convolution_exact`]). Measured relative
+//!   L2 error of the approximation: about `0.32 / min(kappa1, kappa2)` for comparable
+//!   concentrations (3.2 % at 10 and 10, 0.3 % at 100 and 100), far less when one dominates
+//!   (test `convolution_is_moment_matched_and_close_for_sharp_lobes`). A normalised SG kernel
+//!   is a vMF kernel, so the chain of [`crate::env_prefilter`] (levels store kernel-weighted
+//!   averages) is already a vMF-prefiltered chain; what is vMF-specific is choosing the level
+//!   by `kappa` and, when a lobe is itself blurred, [`convolved_kappa`].
+//!
+//! # Example
+//! ```
+//! use relight_sphere::vmf::{self, em, VmfLobe};
+//! use relight_sphere::{Rng, Vec3};
+//! // Path samples of a slice: directions drawn from a lobe, each weighing 1/N of its energy.
+//! let truth = VmfLobe::new(Vec3::new(0.0, 0.8, 0.6), 50.0, Vec3::new(0.6, 0.4, 0.2));
+//! let mut rng = Rng::new(1, 0);
+//! let samples: Vec<em::WeightedDir> = (0..4000)
+//!     .map(|_| em::WeightedDir {
+//!         dir: vmf::sample_vmf(truth.axis, truth.kappa, rng.next_vec2()),
+//!         weight: truth.amplitude / 4000.0,
+//!     })
+//!     .collect();
+//! // The paper's closed-form estimate (eq. 13-15) recovers the lobe.
+//! let fit = vmf::estimate_one_lobe(&samples, vmf::KappaEstimate::Banerjee, vmf::KAPPA_MAX)
+//!     .expect("samples with weight");
+//! assert!((fit.kappa / 50.0 - 1.0).abs() < 0.1);
+//! assert!((fit.amplitude - truth.amplitude).abs().max_element() < 1e-4);
+//! // Their exact L2 distance is small next to the lobe's own norm.
+//! let d2 = vmf::l2_distance_squared(&fit, &truth).x;
+//! let norm2 = vmf::l2_distance_squared(&truth, &VmfLobe { amplitude: Vec3::ZERO, ..truth }).x;
+//! assert!(d2 < 0.01 * norm2);
+//! ```
 //!
 //! # Why a vMF mixture does not implement [`crate::basis::SphericalBasis`]
 //! As for SGs ([`crate::sg`]): axes and concentrations enter non-linearly, so a mixture is
@@ -426,7 +456,7 @@ fn kappa_from_mean_cosine_q(r: f64, q: f64) -> f64 {
         // dg/du = -k A'(k) / (1 - A(k)).
         let dg = -k * mean_cosine_derivative(k) / one_minus_mean_cosine(k);
         let mut next = u - g / dg;
-        if !(next > lo && next < hi) || !next.is_finite() {
+        if !(next > lo && next < hi && next.is_finite()) {
             next = if lo.is_finite() && hi.is_finite() {
                 0.5 * (lo + hi)
             } else if lo.is_finite() {

@@ -242,7 +242,7 @@ fn weighted_shape(
             n[c] += sw * x[c];
         }
     }
-    if !(w > 0.0) {
+    if w.is_nan() || w <= 0.0 {
         return None;
     }
     let len = dot(n, n).sqrt();
@@ -385,7 +385,7 @@ pub fn log_likelihood(samples: &[WeightedDir], lobes: &[VmfLobe]) -> Option<f64>
     let data = Data::new(samples)?;
     let amp = |l: &VmfLobe| (l.amplitude.x + l.amplitude.y + l.amplitude.z).max(0.0) as f64;
     let total: f64 = lobes.iter().map(amp).sum();
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return None;
     }
     let comps: Vec<Comp> = lobes

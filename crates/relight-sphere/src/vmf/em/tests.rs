@@ -147,8 +147,8 @@ fn em_recovers_a_mixture_and_more_lobes_never_lower_the_likelihood() {
     assert_eq!(fits.len(), 5);
     let mut t64 = [0f64; 3];
     for w in &s {
-        for c in 0..3 {
-            t64[c] += w.weight[c] as f64;
+        for (t, x) in t64.iter_mut().zip(w.weight.to_array()) {
+            *t += x as f64;
         }
     }
     let total = Vec3::new(t64[0] as f32, t64[1] as f32, t64[2] as f32);
