@@ -103,8 +103,13 @@ use crate::sg::SgLobe;
 use crate::{Mat3, Vec3};
 use std::f64::consts::{LN_2, PI};
 
-pub use distance::{l2_distance_squared, l2_distance_squared_large_kappa};
-pub use em::{estimate_one_lobe, fit_em, fit_em_nested, EmFit, EmOptions, KappaEstimate};
+pub use distance::{
+    l2_distance_squared, l2_distance_squared_large_kappa, mixture_l2_distance_squared,
+};
+pub use em::{
+    estimate_one_lobe, fit_em, fit_em_nested, log_likelihood, EmFit, EmOptions, KappaEstimate,
+    WeightedDir,
+};
 pub use sample::{invert_vmf_sample, sample_vmf, vmf_pdf};
 
 /// Largest concentration produced by estimation (fits, [`kappa_from_mean_cosine`] callers):

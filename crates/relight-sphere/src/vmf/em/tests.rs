@@ -277,3 +277,28 @@ fn degenerate_inputs_give_no_nan() {
     let same = vec![w(Vec3::new(0.6, 0.0, 0.8), 0.1); 100];
     check(&fit_em(&same, 3, &opts).unwrap(), Vec3::splat(10.0));
 }
+
+#[test]
+fn a_split_that_ends_lower_falls_back_to_the_previous_fit() {
+    // Samples of one lobe: the one-lobe estimate is the likelihood's optimum among single
+    // lobes, and a split left un-iterated (0 EM steps) starts below it, so the nested fit must
+    // fall back: the previous lobe, a dead copy, the same likelihood.
+    let truth = VmfLobe::new(Vec3::new(0.0, 0.6, 0.8), 20.0, Vec3::ONE);
+    let s = samples_of(&[truth], 5000, 9);
+    let opts = EmOptions {
+        max_iterations: 0,
+        split_trial_iterations: 0,
+        ..EmOptions::default()
+    };
+    let fits = fit_em_nested(&s, 3, &opts);
+    assert_eq!(fits.len(), 3);
+    for k in 1..3 {
+        assert_eq!(fits[k].log_likelihood, fits[0].log_likelihood);
+        assert_eq!(fits[k].lobes[0], fits[0].lobes[0]);
+        assert!(fits[k].lobes[1..].iter().all(|l| l.amplitude == Vec3::ZERO));
+        assert_eq!(fits[k].iterations, 0);
+    }
+    // With iterations the split is kept and the likelihood rises (slightly: one lobe's data).
+    let fits = fit_em_nested(&s, 2, &EmOptions::default());
+    assert!(fits[1].log_likelihood >= fits[0].log_likelihood);
+}
