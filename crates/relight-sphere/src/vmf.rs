@@ -36,8 +36,9 @@
 //!   `a exp(lambda (mu . w - 1))` of [`crate::sg`] is the vMF with `kappa = lambda` and
 //!   `alpha = a / p(lambda) = a 2 pi (1 - exp(-2 lambda)) / lambda` ([`VmfLobe::to_sg`],
 //!   [`VmfLobe::from_sg`]).
-//! * `kappa` is bounded above by [`KAPPA_MAX`] wherever it is *estimated* (fits, inverse of the
-//!   mean cosine): a mirror-like lobe is clamped there, its amplitude (energy) kept.
+//! * Estimated concentrations are clamped to `kappa_max` ([`EmOptions::kappa_max`], by default
+//!   [`KAPPA_MAX`]): a mirror-like lobe is clamped there, its amplitude (energy) kept.
+//!   [`kappa_from_mean_cosine`] itself returns `+inf` for `r >= 1`, for its caller to clamp.
 //!
 //! # Closed forms (paper section 3, 4.1, appendix A)
 //! * Inner product: `int f1 f2 = alpha1 alpha2 c(kappa1) c(kappa2) / c(kappa_c)` with
