@@ -32,6 +32,8 @@
 //!   [`sh::rotate`] (rotation of any order) and [`sh::project`] (exact latlong projection);
 //!   [`sh_product`]: triple-product tensor; [`basis`]: the [`basis::SphericalBasis`] trait;
 //! * [`decompose`]: environment = SH part + cap lights (hybrid thesis 4.3);
+//! * [`sg`], [`sg_fit`]: spherical Gaussians and their Levenberg-Marquardt fitter; [`vmf`]:
+//!   von Mises-Fisher lobes (stable normaliser, L2 distance, sampling, EM estimation);
 //! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
 //!
 //! ## Example
@@ -69,6 +71,7 @@ pub mod sg;
 pub mod sg_fit;
 pub mod sh;
 pub mod sh_product;
+pub mod vmf;
 pub mod warp;
 
 #[cfg(test)]
