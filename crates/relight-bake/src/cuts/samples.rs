@@ -328,12 +328,11 @@ mod tests {
         let sum: f64 = s.solid_angles.iter().map(|&w| w as f64).sum();
         // f32 rounding of 32K terms of ~4e-4 each.
         assert!((sum - 4.0 * PI).abs() < 1e-4, "{sum}");
-        // The Fibonacci lattice's Voronoi cells are nearly equal: within 15% of 4 pi / N
-        // (measured: within about 7%, the estimate itself adding ~1/8 relative noise at
-        // 64 dense points per cell).
+        // The Fibonacci lattice's Voronoi cells are nearly equal (measured: at most 14% from
+        // 4 pi / N, 2.6% RMS, the 64-point estimate included).
         let ideal = 4.0 * PI32 / DEFAULT_SAMPLES as f32;
         for &w in &s.solid_angles {
-            assert!((w / ideal - 1.0).abs() < 0.3, "{w} vs {ideal}");
+            assert!((w / ideal - 1.0).abs() < 0.25, "{w} vs {ideal}");
         }
         let rms = (s
             .solid_angles
@@ -342,7 +341,7 @@ mod tests {
             .sum::<f32>()
             / s.len() as f32)
             .sqrt();
-        assert!(rms < 0.1, "rms relative deviation {rms}");
+        assert!(rms < 0.05, "rms relative deviation {rms}");
     }
 
     #[test]
@@ -350,8 +349,8 @@ mod tests {
         let exact = |dirs: &[Vec3], expect: &[f32]| {
             let a = voronoi_solid_angles(dirs, 200_000);
             for (x, e) in a.iter().zip(expect) {
-                // 200K stratified dense points: boundary error well under 0.5%.
-                assert!((x - e).abs() < 0.005 * e, "{a:?} vs {expect:?}");
+                // 200K stratified dense points: boundary error measured under 0.05%.
+                assert!((x - e).abs() < 0.002 * e, "{a:?} vs {expect:?}");
             }
         };
         // Six axes: cube faces, 4 pi / 6 each.
@@ -371,8 +370,7 @@ mod tests {
         let s = EnvSamples::fibonacci(n, 5).unwrap();
         let spacing = (4.0 * PI32 / n as f32).sqrt();
         let grid = NearestSample::new(&s.dirs);
-        // Minimum spacing: every point's nearest neighbour (brute force over the grid's
-        // candidates is enough: check all pairs on a subset).
+        // Minimum spacing, brute force over all pairs with every 7th point.
         let mut min_d = f32::INFINITY;
         for i in (0..n).step_by(7) {
             for j in 0..n {
@@ -382,10 +380,10 @@ mod tests {
             }
         }
         // Hexagonal packing at this density has spacing 1.07 sqrt(4 pi / N); the lattice's
-        // worst pair (near the poles) is measured at ~0.67 of it; random points would have
+        // closest pair is measured at 0.87 sqrt(4 pi / N); uniform random points would have
         // pairs ~100x closer.
-        assert!(min_d > 0.6 * spacing, "min spacing {min_d} vs {spacing}");
-        // Covering radius: no direction farther than ~0.8 spacing from a sample (random
+        assert!(min_d > 0.8 * spacing, "min spacing {min_d} vs {spacing}");
+        // Covering radius: measured 0.69 sqrt(4 pi / N) (hexagonal: 0.62; uniform random
         // points leave holes of several spacings).
         let mut rng = Rng::new(3, 3);
         let mut cover = 0.0f32;
@@ -393,7 +391,7 @@ mod tests {
             let d = relight_sphere::warp::square_to_uniform_sphere(rng.next_vec2());
             cover = cover.max((s.dirs[grid.nearest(d)] - d).length());
         }
-        assert!(cover < 0.8 * spacing, "covering radius {cover} vs {spacing}");
+        assert!(cover < 0.75 * spacing, "covering radius {cover} vs {spacing}");
         // Deterministic for a seed, different for another.
         assert_eq!(s, EnvSamples::fibonacci(n, 5).unwrap());
         assert_ne!(s.dirs, EnvSamples::fibonacci(n, 6).unwrap().dirs);
@@ -424,8 +422,8 @@ mod tests {
         let sum: Vec3 = l.iter().zip(&s.solid_angles).map(|(&l, &w)| l * w).sum();
         let exact = env.map.integral() * 2.0;
         // Voronoi cells estimated with 64 points each, texels assigned by their centres:
-        // the two partitions disagree at cell boundaries only (~1% of a smooth integral).
-        assert!((sum - exact).length() < 0.01 * exact.length(), "{sum} vs {exact}");
+        // the two partitions disagree at cell boundaries only (measured 4e-5 relative).
+        assert!((sum - exact).length() < 1e-3 * exact.length(), "{sum} vs {exact}");
         // Each sample's radiance is close to the map at its direction (cells are small).
         for (&li, &d) in l.iter().zip(&s.dirs) {
             let direct = env.radiance(d);

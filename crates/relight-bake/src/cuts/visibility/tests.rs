@@ -8,10 +8,10 @@ use crate::cuts::{bake_range, CutsBakeSettings, LightTreeKind};
 use relight_scene::accel::{build, Backend};
 use relight_scene::shapes::{aabb_box, ground_plane, uv_sphere};
 
-/// Sphere of radius 1 centred 2 above an 8 x 8 ground plane.
-fn sphere_over_plane() -> TriMesh {
+/// Sphere of radius 1 centred 2 above an 8 x 8 ground plane, `rings x 2 rings` facets.
+fn sphere_over_plane(rings: u32) -> TriMesh {
     let mut m = ground_plane(Vec3::ZERO, 8.0, 8);
-    m.append(&uv_sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, 48, 96), 0);
+    m.append(&uv_sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, rings, 2 * rings), 0);
     m
 }
 
@@ -44,7 +44,7 @@ fn shadow_of_a_sphere_matches_the_closed_form() {
     // A point on the plane under a sphere of radius r centred at height h: the sphere hides
     // the cone of half-angle asin(r / h) around +Y, so
     // int V max(0, cos) dw = pi (1 - (r / h)^2) (the cap's cosine integral is pi sin^2).
-    let mesh = sphere_over_plane();
+    let mesh = sphere_over_plane(48);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(32768, 0).unwrap();
     let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
@@ -66,7 +66,7 @@ fn shadow_of_a_sphere_matches_the_closed_form() {
 
 #[test]
 fn bake_is_deterministic_valid_and_honours_ranges() {
-    let mesh = sphere_over_plane();
+    let mesh = sphere_over_plane(16);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let settings = CutsBakeSettings {
         lights: 4096,
@@ -144,7 +144,7 @@ fn a_vertex_that_sees_nothing_has_one_zero_node() {
 
 #[test]
 fn capped_cuts_are_reported() {
-    let mesh = sphere_over_plane();
+    let mesh = sphere_over_plane(16);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(2048, 0).unwrap();
     let tree = LightTree::environment(&s.dirs).unwrap();
@@ -164,7 +164,7 @@ fn capped_cuts_are_reported() {
 
 #[test]
 fn pilot_vectors_match_the_slow_mean_and_drive_a_valid_tree() {
-    let mesh = sphere_over_plane();
+    let mesh = sphere_over_plane(16);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(512, 0).unwrap();
     let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
@@ -198,7 +198,7 @@ fn pilot_vectors_match_the_slow_mean_and_drive_a_valid_tree() {
 
 #[test]
 fn data_driven_bake_is_valid() {
-    let mesh = sphere_over_plane();
+    let mesh = sphere_over_plane(16);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let settings = CutsBakeSettings {
         lights: 2048,
