@@ -344,7 +344,10 @@ mod tests {
             let (m, m2) = stats_slow(&t, &values, p);
             // f32 pairwise updates: relative 1e-5 of the sums involved.
             assert!((s.mean[p as usize] as f64 - m).abs() < 1e-5, "node {p}");
-            assert!((s.m2[p as usize] as f64 - m2).abs() < 1e-4 * (1.0 + m2), "node {p}");
+            assert!(
+                (s.m2[p as usize] as f64 - m2).abs() < 1e-4 * (1.0 + m2),
+                "node {p}"
+            );
         }
     }
 

@@ -136,10 +136,7 @@ fn refine_by_intensity(
     let intensity = |p: u32| stats.mean[p as usize] * tree.node(p).leaves as f32;
     let mut out = Vec::with_capacity(budget);
     let mut heap = BinaryHeap::new();
-    let push = |p: u32, out: &mut Vec<u32>, heap: &mut BinaryHeap<Keyed>| match tree
-        .node(p)
-        .kind
-    {
+    let push = |p: u32, out: &mut Vec<u32>, heap: &mut BinaryHeap<Keyed>| match tree.node(p).kind {
         NodeKind::Leaf { .. } => out.push(p),
         NodeKind::Inner { .. } => heap.push(Keyed {
             key: intensity(p),
@@ -182,7 +179,11 @@ mod tests {
             Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y.max(0.0)) + Vec3::splat(s)
         });
         let l = sample_radiance(&s, &Environment::new(map)).unwrap();
-        let power = l.iter().zip(&s.solid_angles).map(|(&l, &w)| l * w).collect();
+        let power = l
+            .iter()
+            .zip(&s.solid_angles)
+            .map(|(&l, &w)| l * w)
+            .collect();
         (s, t, power)
     }
 
@@ -217,7 +218,10 @@ mod tests {
             });
             for k in 0..3 {
                 // f32 means times leaf counts: relative 1e-5.
-                assert!((sum[k] - total[k]).abs() < 1e-5 * total[k], "{sum:?} vs {total:?}");
+                assert!(
+                    (sum[k] - total[k]).abs() < 1e-5 * total[k],
+                    "{sum:?} vs {total:?}"
+                );
             }
             // The sun (a cap of 0.03 sr, ~20 of the 8192 lights, 3/4 of the power) is
             // resolved down to single lights at every budget: the intensity phase splits it
@@ -235,7 +239,9 @@ mod tests {
                 t.node(c.index[k]).leaves
             };
             let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
-            let in_sun: Vec<usize> = (0..s.len()).filter(|&i| s.dirs[i].dot(sun) > 0.997).collect();
+            let in_sun: Vec<usize> = (0..s.len())
+                .filter(|&i| s.dirs[i].dot(sun) > 0.997)
+                .collect();
             assert!(in_sun.len() >= 8);
             for &i in &in_sun {
                 assert_eq!(leaves_of(i), 1, "budget {budget}: sun light {i}");
@@ -247,7 +253,10 @@ mod tests {
     fn error_phase_first_then_reported() {
         let (_, t, power) = setup(4096);
         let tight = LightCut::build(&t, &power, 0.01, 128).unwrap();
-        assert!(!tight.error_bound_met, "sigma 0.01 cannot be met by 128 nodes");
+        assert!(
+            !tight.error_bound_met,
+            "sigma 0.01 cannot be met by 128 nodes"
+        );
         assert_eq!(tight.len(), 128);
         let loose = LightCut::build(&t, &power, 1e6, 300).unwrap();
         assert!(loose.error_bound_met);

@@ -135,7 +135,11 @@ pub fn interpolate<const N: usize>(
     let (mut nodes, mut means) = (Vec::new(), Vec::new());
     merge_cuts(cuts.map(CutKeys::from), |node, pos| {
         nodes.push(node);
-        means.push((0..N).map(|j| weights[j] * dequantise(cuts[j].value[pos[j]])).sum());
+        means.push(
+            (0..N)
+                .map(|j| weights[j] * dequantise(cuts[j].value[pos[j]]))
+                .sum(),
+        );
     });
     (nodes, means)
 }

@@ -164,7 +164,11 @@ pub fn sample_radiance(samples: &EnvSamples, env: &Environment) -> Result<Vec<Ve
         .zip(&samples.dirs)
         .map(|(a, &d)| {
             let mean = if a[3] > 0.0 {
-                Vec3::new((a[0] / a[3]) as f32, (a[1] / a[3]) as f32, (a[2] / a[3]) as f32)
+                Vec3::new(
+                    (a[0] / a[3]) as f32,
+                    (a[1] / a[3]) as f32,
+                    (a[2] / a[3]) as f32,
+                )
             } else {
                 map.eval(env_from_world * d)
             };
@@ -391,7 +395,10 @@ mod tests {
             let d = relight_sphere::warp::square_to_uniform_sphere(rng.next_vec2());
             cover = cover.max((s.dirs[grid.nearest(d)] - d).length());
         }
-        assert!(cover < 0.75 * spacing, "covering radius {cover} vs {spacing}");
+        assert!(
+            cover < 0.75 * spacing,
+            "covering radius {cover} vs {spacing}"
+        );
         // Deterministic for a seed, different for another.
         assert_eq!(s, EnvSamples::fibonacci(n, 5).unwrap());
         assert_ne!(s.dirs, EnvSamples::fibonacci(n, 6).unwrap().dirs);
@@ -423,7 +430,10 @@ mod tests {
         let exact = env.map.integral() * 2.0;
         // Voronoi cells estimated with 64 points each, texels assigned by their centres:
         // the two partitions disagree at cell boundaries only (measured 4e-5 relative).
-        assert!((sum - exact).length() < 1e-3 * exact.length(), "{sum} vs {exact}");
+        assert!(
+            (sum - exact).length() < 1e-3 * exact.length(),
+            "{sum} vs {exact}"
+        );
         // Each sample's radiance is close to the map at its direction (cells are small).
         for (&li, &d) in l.iter().zip(&s.dirs) {
             let direct = env.radiance(d);

@@ -29,7 +29,10 @@ pub enum LightTreeKind {
 /// options of `relight bake --method cuts`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
-#[cfg_attr(feature = "cli", command(next_help_heading = "Cuts bake (--method cuts)"))]
+#[cfg_attr(
+    feature = "cli",
+    command(next_help_heading = "Cuts bake (--method cuts)")
+)]
 pub struct CutsBakeSettings {
     /// Environment light samples (the paper's 32K), `2..=MAX_LIGHTS`.
     #[cfg_attr(feature = "cli", arg(long = "cut-lights", default_value_t = DEFAULT_SAMPLES as u32))]
@@ -134,13 +137,25 @@ mod tests {
         let bad = [
             CutsBakeSettings { lights: 1, ..d },
             CutsBakeSettings { sigma: -1.0, ..d },
-            CutsBakeSettings { sigma: f32::NAN, ..d },
+            CutsBakeSettings {
+                sigma: f32::NAN,
+                ..d
+            },
             CutsBakeSettings { max_cut: 0, ..d },
             CutsBakeSettings { beta: 1.5, ..d },
-            CutsBakeSettings { beta: f32::NAN, ..d },
-            CutsBakeSettings { vertex_clusters: 0, ..d },
+            CutsBakeSettings {
+                beta: f32::NAN,
+                ..d
+            },
+            CutsBakeSettings {
+                vertex_clusters: 0,
+                ..d
+            },
             CutsBakeSettings { k: 0.0, ..d },
-            CutsBakeSettings { threads: Some(0), ..d },
+            CutsBakeSettings {
+                threads: Some(0),
+                ..d
+            },
         ];
         for s in bad {
             assert!(matches!(s.validate(), Err(BakeError::Settings(_))), "{s:?}");

@@ -593,7 +593,10 @@ mod tests {
                 .fold(0.0f32, f32::max);
             // Balanced halving makes elongated patches (aspect up to ~2:1 after a split);
             // 2.5 disc radii bounds them.
-            assert!(spread < 2.5 * disc_radius, "node {p}: {spread} vs {disc_radius}");
+            assert!(
+                spread < 2.5 * disc_radius,
+                "node {p}: {spread} vs {disc_radius}"
+            );
         }
     }
 
@@ -611,9 +614,7 @@ mod tests {
             .collect();
         let normals: Vec<Vec3> = dirs.iter().map(|&d| -d).collect();
         let m = 8;
-        let data: Vec<f32> = (0..n)
-            .flat_map(|i| vec![(i % 2) as f32; m])
-            .collect();
+        let data: Vec<f32> = (0..n).flat_map(|i| vec![(i % 2) as f32; m]).collect();
         let pilot = PilotVectors {
             lights: n,
             clusters: m,

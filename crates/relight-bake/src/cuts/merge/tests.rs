@@ -106,7 +106,13 @@ fn fast_traversal_equals_slow_reference() {
     for trial in 0..12 {
         let sig = [0.3f32, 1.0, 2.0, 5.0];
         let cuts: Vec<TestCut> = (0..4)
-            .map(|j| TestCut::new(&t, &random_visibility(&dirs, &mut rng), sig[(trial + j) % 4]))
+            .map(|j| {
+                TestCut::new(
+                    &t,
+                    &random_visibility(&dirs, &mut rng),
+                    sig[(trial + j) % 4],
+                )
+            })
             .collect();
         let dense: Vec<Vec<f64>> = cuts.iter().map(|c| c.expand(&t)).collect();
         // Merged clusters against the slow union, for 1 to 4 cuts.
@@ -114,10 +120,17 @@ fn fast_traversal_equals_slow_reference() {
         merge_cuts([cuts[0].keys()], |n, _| visited.push(n.index));
         assert_eq!(visited, cuts[0].index);
         visited.clear();
-        merge_cuts([cuts[0].keys(), cuts[1].keys()], |n, _| visited.push(n.index));
+        merge_cuts([cuts[0].keys(), cuts[1].keys()], |n, _| {
+            visited.push(n.index)
+        });
         assert_eq!(visited, merged_slow(&t, &[&cuts[0], &cuts[1]]));
         visited.clear();
-        let keys4 = [cuts[0].keys(), cuts[1].keys(), cuts[2].keys(), cuts[3].keys()];
+        let keys4 = [
+            cuts[0].keys(),
+            cuts[1].keys(),
+            cuts[2].keys(),
+            cuts[3].keys(),
+        ];
         merge_cuts(keys4, |n, pos| {
             visited.push(n.index);
             // The reported positions are the cuts' nodes containing the cluster.
@@ -129,8 +142,13 @@ fn fast_traversal_equals_slow_reference() {
         let all: Vec<&TestCut> = cuts.iter().collect();
         assert_eq!(visited, merged_slow(&t, &all));
         // Products of 2, 3 and 4 cuts against the dense products of the expansions.
-        let p2 = product([cuts[0].keys(), cuts[1].keys()], [&cuts[0].mean, &cuts[1].mean]);
-        let d2: f64 = (0..t.light_count()).map(|i| dense[0][i] * dense[1][i]).sum();
+        let p2 = product(
+            [cuts[0].keys(), cuts[1].keys()],
+            [&cuts[0].mean, &cuts[1].mean],
+        );
+        let d2: f64 = (0..t.light_count())
+            .map(|i| dense[0][i] * dense[1][i])
+            .sum();
         // f32 means multiplied in f64: relative 1e-6.
         assert!((p2 - d2).abs() <= 1e-6 * (1.0 + d2.abs()), "{p2} vs {d2}");
         let p3 = product(
@@ -141,7 +159,10 @@ fn fast_traversal_equals_slow_reference() {
             .map(|i| dense[0][i] * dense[1][i] * dense[2][i])
             .sum();
         assert!((p3 - d3).abs() <= 1e-6 * (1.0 + d3.abs()), "{p3} vs {d3}");
-        let p4 = product(keys4, [&cuts[0].mean, &cuts[1].mean, &cuts[2].mean, &cuts[3].mean]);
+        let p4 = product(
+            keys4,
+            [&cuts[0].mean, &cuts[1].mean, &cuts[2].mean, &cuts[3].mean],
+        );
         let d4: f64 = (0..t.light_count())
             .map(|i| dense.iter().map(|d| d[i]).product::<f64>())
             .sum();
@@ -201,7 +222,10 @@ fn merged_product_error_is_bounded_by_the_cuts_errors() {
         let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
         let a64: Vec<f64> = a.iter().map(|&x| x as f64).collect();
         let bound = ca.m2.sqrt() * norm(&cb.expand(&t)) + norm(&a64) * cb.m2.sqrt();
-        assert!((merged - exact).abs() <= bound * (1.0 + 1e-5), "sigma {sigma}");
+        assert!(
+            (merged - exact).abs() <= bound * (1.0 + 1e-5),
+            "sigma {sigma}"
+        );
         // Each cut's own L2 error is within |cut| sigma^2 (Eq. 6 per node).
         assert!(ca.m2 <= ca.index.len() as f64 * (sigma * sigma) as f64 * (1.0 + 1e-5));
     }
@@ -286,18 +310,21 @@ fn shade_matches_slow_reference_and_converges_to_exact() {
             let li = find(&lc.index, rank);
             let mut deepest = lc.index[li];
             let mut v = 0.0f32;
-            for j in 0..3 {
+            for (j, &b) in bary.iter().enumerate() {
                 let c = vc.cut(j);
                 let k = find(c.index, rank);
                 deepest = deepest.min(c.index[k]);
-                v += bary[j] * dequantise(c.value[k]);
+                v += b * dequantise(c.value[k]);
             }
             if v > 0.0 {
                 slow += lc.value[li] * v * brdf(t.direction(deepest));
             }
         }
         // f32 sums over 2048 leaves vs over the merged clusters: relative 1e-4.
-        assert!((fast - slow).length() <= 1e-4 * slow.length(), "{fast} vs {slow}");
+        assert!(
+            (fast - slow).length() <= 1e-4 * slow.length(),
+            "{fast} vs {slow}"
+        );
         if sigma == 0.0 {
             // Every cut at the leaves: the exact sum over the lights.
             let exact: Vec3 = (0..2048)
@@ -307,7 +334,10 @@ fn shade_matches_slow_reference_and_converges_to_exact() {
                 })
                 .sum();
             // Quantisation of v to 16 bits: relative 1e-4.
-            assert!((fast - exact).length() <= 1e-4 * exact.length(), "{fast} vs {exact}");
+            assert!(
+                (fast - exact).length() <= 1e-4 * exact.length(),
+                "{fast} vs {exact}"
+            );
         }
     }
     let _ = order;

@@ -11,7 +11,10 @@ use relight_scene::shapes::{aabb_box, ground_plane, uv_sphere};
 /// Sphere of radius 1 centred 2 above an 8 x 8 ground plane, `rings x 2 rings` facets.
 fn sphere_over_plane(rings: u32) -> TriMesh {
     let mut m = ground_plane(Vec3::ZERO, 8.0, 8);
-    m.append(&uv_sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, rings, 2 * rings), 0);
+    m.append(
+        &uv_sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, rings, 2 * rings),
+        0,
+    );
     m
 }
 
@@ -34,7 +37,7 @@ fn unoccluded_vertex_sees_the_clamped_cosine() {
     for v in 0..mesh.vertex_count() {
         sampler.sample(v, &mut out, &mut Scratch::default());
         for (&x, w) in out.iter().zip(&s.dirs) {
-            assert_eq!(x, w.y.max(0.0).min(1.0));
+            assert_eq!(x, w.y.clamp(0.0, 1.0));
         }
     }
 }
@@ -61,7 +64,10 @@ fn shadow_of_a_sphere_matches_the_closed_form() {
     let exact = std::f64::consts::PI * (1.0 - 0.25);
     // The 48 x 96 tessellated sphere is inscribed (slightly smaller shadow), and the samples'
     // Voronoi cells straddle its rim: 1%.
-    assert!((integral - exact).abs() < 0.01 * exact, "{integral} vs {exact}");
+    assert!(
+        (integral - exact).abs() < 0.01 * exact,
+        "{integral} vs {exact}"
+    );
 }
 
 #[test]
@@ -101,12 +107,21 @@ fn bake_is_deterministic_valid_and_honours_ranges() {
         let (a, b) = (part.cuts.cut(v - 40), one.cuts.cut(v));
         assert_eq!((a.index, a.value), (b.index, b.value));
     }
-    assert!(bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count() + 1).is_err());
+    assert!(bake_range(
+        &mesh,
+        caster.as_ref(),
+        &settings,
+        0..mesh.vertex_count() + 1
+    )
+    .is_err());
     // Another seed rotates the samples: another bake.
     let other = bake_range(
         &mesh,
         caster.as_ref(),
-        &CutsBakeSettings { seed: 4, ..settings },
+        &CutsBakeSettings {
+            seed: 4,
+            ..settings
+        },
         0..10,
     )
     .unwrap();
@@ -138,7 +153,11 @@ fn a_vertex_that_sees_nothing_has_one_zero_node() {
     cuts.validate(&tree).unwrap();
     for v in [inside, corner] {
         let c = cuts.cut(v);
-        assert_eq!((c.index, c.value), (&[tree.root()][..], &[0u16][..]), "vertex {v}");
+        assert_eq!(
+            (c.index, c.value),
+            (&[tree.root()][..], &[0u16][..]),
+            "vertex {v}"
+        );
     }
 }
 
@@ -181,15 +200,16 @@ fn pilot_vectors_match_the_slow_mean_and_drive_a_valid_tree() {
         let mut mean = vec![0.0f64; 512];
         for &v in g {
             sampler.sample(v as usize, &mut values, &mut scratch);
-            mean.iter_mut().zip(&values).for_each(|(a, &x)| *a += x as f64);
+            mean.iter_mut()
+                .zip(&values)
+                .for_each(|(a, &x)| *a += x as f64);
         }
-        for i in 0..512 {
-            let expect = mean[i] / g.len() as f64;
+        for (i, &sum) in mean.iter().enumerate() {
+            let expect = sum / g.len() as f64;
             assert!((pilot.data[i * m + j] as f64 - expect).abs() < 1e-6);
         }
     }
-    // Lights below the plane are blocked for every plane vertex: their vectors are all but
-    // zero (only the sphere's lower vertices see them).
+    // The pilot data changes the tree (beta 0.5 mixes it with the geometric metric).
     let normals: Vec<Vec3> = s.dirs.iter().map(|&d| -d).collect();
     let t = LightTree::data_driven(&s.dirs, &normals, &pilot, 30.0, 0.5).unwrap();
     t.validate().unwrap();

@@ -1,0 +1,166 @@
+//! Cuts bake cost (section "cuts-bake"; issue 11's target: the bunny's 35.9K vertices with
+//! 32K environment samples in under 3 minutes on 2 cores).
+//!
+//! Through the public API of `relight_bake::cuts`, on `bunny.obj` (else a procedural sphere
+//! on a plane):
+//! 1. the light samples (Fibonacci lattice, Voronoi solid angles from 64 dense points each)
+//!    and the geometric light tree over them;
+//! 2. the visibility cuts of a contiguous block of vertices from the middle of the mesh, on
+//!    every thread, against the **baseline** of sampling the same vertices' visibility
+//!    functions (the same rays) with nothing else done; mean cut length and capped cuts;
+//! 3. the whole mesh's bake extrapolated from the block's time per vertex, against the
+//!    target;
+//! 4. the illumination cut of a procedural sky with a sun at the budgets 128, 256 and 512.
+
+use super::{median_ms, Section};
+use crate::Result;
+use glam::Vec3;
+use rayon::prelude::*;
+use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
+use relight_bake::cuts::samples::{sample_radiance, EnvSamples, DEFAULT_SAMPLES};
+use relight_bake::cuts::tree::LightTree;
+use relight_bake::cuts::visibility::{CutParams, Scratch, VisibilitySampler};
+use relight_bake::BakeError;
+use relight_method::MethodError;
+use relight_scene::accel;
+use relight_scene::scene::Environment;
+use relight_sphere::EnvMap;
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The bake-time target of issue 11 on 2 cores, seconds.
+pub const TARGET_SECONDS: f64 = 180.0;
+
+/// The sections: the bake (samples, tree, cuts vs rays, extrapolation) and the light cut.
+///
+/// # Errors
+/// A mesh that cannot be read, or a bake that fails.
+pub(super) fn sections(
+    bake_mesh: &Option<PathBuf>,
+    data: &Option<PathBuf>,
+    quick: bool,
+) -> Result<Vec<Section>> {
+    let (name, mesh) = match super::shared_mesh(bake_mesh, data, "data/meshes/bunny.obj")? {
+        Some(x) => x,
+        None => {
+            eprintln!("bench: no bunny.obj: using a procedural sphere on a plane");
+            let mut m = relight_scene::shapes::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
+            m.append(&relight_scene::shapes::ground_plane(Vec3::ZERO, 4.0, 64), 0);
+            ("procedural sphere + plane".into(), m)
+        }
+    };
+    let err = |e: BakeError| MethodError::from(e);
+    let lights = DEFAULT_SAMPLES;
+    let t0 = Instant::now();
+    let samples = EnvSamples::fibonacci(lights, 0).map_err(|e| err(e.into()))?;
+    let samples_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t0 = Instant::now();
+    let tree = LightTree::environment(&samples.dirs).map_err(|e| err(e.into()))?;
+    let tree_ms = t0.elapsed().as_secs_f64() * 1e3;
+
+    let caster = accel::build_default(&mesh);
+    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &samples.dirs).map_err(err)?;
+    let nv = mesh.vertex_count();
+    let block = if quick { 64 } else { 1024 }.min(nv);
+    let range = nv / 2 - block / 2..nv / 2 - block / 2 + block;
+    let params = CutParams {
+        sigma: relight_bake::cuts::cut::DEFAULT_SIGMA,
+        max_nodes: relight_bake::cuts::cut::DEFAULT_MAX_CUT,
+        threads: None,
+        progress: false,
+    };
+    // Baseline: the same rays, the values thrown away; run before and after the cuts (the
+    // first run also warms the caster and the thread pool), the faster one kept.
+    let rays_only = || {
+        let t0 = Instant::now();
+        range.clone().into_par_iter().for_each_init(
+            || (Scratch::default(), vec![0.0f32; lights]),
+            |(s, out), v| {
+                sampler.sample(v, out, s);
+                std::hint::black_box(&out);
+            },
+        );
+        t0.elapsed().as_secs_f64()
+    };
+    let rays_before = rays_only();
+    let t0 = Instant::now();
+    let cuts = sampler.cuts(&tree, range.clone(), &params).map_err(err)?;
+    let cuts_s = t0.elapsed().as_secs_f64();
+    let rays_s = rays_before.min(rays_only());
+    let per_vertex_ms = cuts_s / block as f64 * 1e3;
+    let whole_s = cuts_s / block as f64 * nv as f64 + (samples_ms + tree_ms) / 1e3;
+    let mut bake = Section::new(
+        format!(
+            "Cuts bake: {name} ({nv} vertices), {lights} lights, sigma 2, cap 1000, {}, {} \
+             threads; block of {block} vertices",
+            caster.name(),
+            rayon::current_num_threads()
+        ),
+        &[
+            "samples (ms)",
+            "tree (ms)",
+            "cuts (s)",
+            "same rays only (s)",
+            "overhead",
+            "per vertex (ms)",
+            "mean cut",
+            "capped",
+            "whole mesh est. (s)",
+            "target (s)",
+        ],
+    );
+    bake.row(vec![
+        json!(samples_ms),
+        json!(tree_ms),
+        json!(cuts_s),
+        json!(rays_s),
+        json!(cuts_s / rays_s),
+        json!(per_vertex_ms),
+        json!(cuts.mean_len()),
+        json!(cuts.capped.len()),
+        json!(whole_s),
+        json!(TARGET_SECONDS),
+    ]);
+
+    // Illumination cuts of a sky with a sun (512 x 256 latlong).
+    let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
+    let map = EnvMap::latlong_from_fn(512, 257, |d| {
+        let s = if d.dot(sun) > 0.999 { 2000.0 } else { 0.0 };
+        Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y.max(0.0)) + Vec3::splat(s)
+    });
+    let env = Environment::new(map);
+    let radiance_ms = median_ms(3, || {
+        std::hint::black_box(sample_radiance(&samples, &env).ok());
+    });
+    let radiance = sample_radiance(&samples, &env).map_err(|e| err(e.into()))?;
+    let power: Vec<Vec3> = radiance
+        .iter()
+        .zip(&samples.solid_angles)
+        .map(|(&l, &w)| l * w)
+        .collect();
+    let mut lc = Section::new(
+        format!("Illumination cut: {lights} lights, sky + sun, sigma {DEFAULT_LIGHT_SIGMA}"),
+        &[
+            "budget",
+            "build (ms)",
+            "sample radiance (ms)",
+            "error bound met",
+        ],
+    );
+    for budget in LIGHT_CUT_BUDGETS {
+        let mut met = false;
+        let ms = median_ms(5, || {
+            if let Ok(c) = LightCut::build(&tree, &power, DEFAULT_LIGHT_SIGMA, budget) {
+                met = c.error_bound_met;
+            }
+        });
+        lc.row(vec![
+            json!(budget),
+            json!(ms),
+            json!(radiance_ms),
+            json!(met),
+        ]);
+    }
+    Ok(vec![bake, lc])
+}
