@@ -25,15 +25,17 @@
 //! * Directions are world-frame unit vectors (`relight_sphere`'s conventions: +Y up); an
 //!   environment light sample `i` is a direction `w_i` with the solid angle `O_i` of its
 //!   Voronoi cell (`sum_i O_i = 4 pi`) and radiance `L_i` arriving from it.
-//! * **Visibility function** of a vertex with unit normal `n`: `v_i = V(w_i) max(0, n . w_i)`,
-//!   in `[0, 1]`: binary visibility times the cosine. It excludes the solid angle, the
-//!   radiance and the BRDF. Vertex cuts store cluster means of `v`, quantised to 16 bits
-//!   (`round(65535 v)`).
+//! * **Visibility function** of a vertex with unit normal `n`: by default
+//!   `v_i = V(w_i) max(0, n . w_i)`, in `[0, 1]`: binary visibility times the cosine; or the
+//!   paper's binary `V(w_i) [n . w_i > 0]` ([`visibility::CutFunction`]), the cosine then
+//!   going with the BRDF at render time. It excludes the solid angle, the radiance and the
+//!   BRDF. Vertex cuts store cluster means of `v`, quantised to 16 bits (`round(65535 v)`).
 //! * **Light function**: `l_i = L_i O_i` (RGB, radiance times solid angle: the sample as a
 //!   point light). Outgoing radiance is then (Eq. 1-2 with the paper's `G` in `l`)
 //!   `B = sum_i l_i f_r(w_i) v_i`, and with merged clusters `C'_k` (Eq. 5)
-//!   `B ~ sum_k |C'_k| <l>_k <v>_k f_r(<w>_k)` where `f_r` excludes the cosine (it is in `v`)
-//!   and `<w>_k` is the normalised mean direction of the cluster.
+//!   `B ~ sum_k |C'_k| <l>_k <v>_k f_r(<w>_k)` where `f_r` excludes the cosine when `v` holds
+//!   it (and includes it otherwise) and `<w>_k` is the normalised mean direction of the
+//!   cluster.
 //! * **Tree indices**: nodes are numbered in post-order (children before parents, the root
 //!   last, `2N - 1` nodes for `N` leaves); node `p` covers the post-order range
 //!   `[leftleaf(p), p]`, its leftmost leaf being `leftleaf(p)`. A cut is a list of nodes in
@@ -107,7 +109,7 @@ pub fn bake_range(
 ) -> Result<CutsBake, BakeError> {
     settings.validate()?;
     let samples = EnvSamples::fibonacci(settings.lights as usize, settings.seed)?;
-    let sampler = VisibilitySampler::new(mesh, caster, &samples.dirs)?;
+    let sampler = VisibilitySampler::new(mesh, caster, &samples.dirs, settings.function)?;
     let normals: Vec<glam::Vec3> = samples.dirs.iter().map(|&d| -d).collect();
     let tree = match settings.tree {
         LightTreeKind::Geometric => LightTree::geometric(&samples.dirs, &normals, settings.k)?,

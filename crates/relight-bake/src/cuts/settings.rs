@@ -3,6 +3,7 @@
 use super::cut::{DEFAULT_MAX_CUT, DEFAULT_SIGMA};
 use super::samples::DEFAULT_SAMPLES;
 use super::tree::{DEFAULT_BETA, DEFAULT_K, DEFAULT_VERTEX_CLUSTERS};
+pub use super::visibility::CutFunction;
 use crate::BakeError;
 use serde::{Deserialize, Serialize};
 
@@ -40,6 +41,10 @@ pub struct CutsBakeSettings {
     /// `sigma` of Eq. 6: every cut node has `|C| var <= sigma^2` (the paper: 1.5-3), `>= 0`.
     #[cfg_attr(feature = "cli", arg(long = "cut-sigma", default_value_t = DEFAULT_SIGMA))]
     pub sigma: f32,
+    /// The function each vertex cut approximates: visibility times the cosine, or the
+    /// paper's binary visibility (the cosine then in the BRDF at render time).
+    #[cfg_attr(feature = "cli", arg(long = "cut-function", value_enum, default_value_t = CutFunction::VisibilityCosine))]
+    pub function: CutFunction,
     /// Cap on a visibility cut's nodes (the paper's 1000), `1..=MAX_CUT_CAP`.
     #[cfg_attr(feature = "cli", arg(long = "cut-max", default_value_t = DEFAULT_MAX_CUT as u32))]
     pub max_cut: u32,
@@ -70,12 +75,13 @@ pub struct CutsBakeSettings {
 }
 
 impl Default for CutsBakeSettings {
-    /// The paper's: 32K lights, sigma 2, cap 1000, geometric tree (data-driven: beta 0.5,
+    /// The paper's: 32K lights, sigma 2, visibility times cosine, cap 1000, geometric tree (data-driven: beta 0.5,
     /// 1024 clusters), K 30, seed 0, all cores, no progress bar.
     fn default() -> Self {
         CutsBakeSettings {
             lights: DEFAULT_SAMPLES as u32,
             sigma: DEFAULT_SIGMA,
+            function: CutFunction::VisibilityCosine,
             max_cut: DEFAULT_MAX_CUT as u32,
             tree: LightTreeKind::Geometric,
             beta: DEFAULT_BETA,

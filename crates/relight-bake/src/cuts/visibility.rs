@@ -3,7 +3,10 @@
 //! pilot visibility vectors of sec. 3.4).
 //!
 //! For vertex `p` with unit shading normal `n`, light `i` gets `v_i = V(w_i) max(0, n . w_i)`
-//! ([`crate::cuts`] conventions): one shadow ray per light above the shading horizon,
+//! ([`CutFunction::VisibilityCosine`], the default) or `V(w_i) [n . w_i > 0]`
+//! ([`CutFunction::Visibility`], the paper's binary visibility, the cosine left to the BRDF at
+//! render time); see the [`crate::cuts`] conventions. One shadow ray per light above the
+//! shading horizon,
 //! leaving `p` offset along its area-weighted geometric normal exactly as the SH bake's rays
 //! ([`crate::transport::surface_ray`]: a direction above the shading normal but below the
 //! surface hits the surface and counts as blocked). A vertex with a degenerate normal sees
@@ -24,7 +27,21 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 use relight_scene::accel::{Ray, RayCaster};
 use relight_scene::mesh::TriMesh;
+use serde::{Deserialize, Serialize};
 use std::ops::Range;
+
+/// The function a vertex cut approximates. A closed set.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum CutFunction {
+    /// `V(w) max(0, n . w)`: visibility times the clamped cosine of the vertex normal.
+    #[default]
+    VisibilityCosine,
+    /// `V(w) [n . w > 0]`: binary visibility above the vertex's horizon (the paper's `V`,
+    /// sec. 3.1, with the cosine in the BRDF, so a per-pixel normal can change it).
+    Visibility,
+}
 
 /// Vertices per parallel work item (and progress tick).
 const CHUNK: usize = 16;
@@ -50,6 +67,7 @@ pub struct VisibilitySampler<'a> {
     caster: &'a dyn RayCaster,
     dirs: &'a [Vec3],
     ng: Vec<Vec3>,
+    function: CutFunction,
 }
 
 /// Per-thread buffers of [`VisibilitySampler::sample`].
@@ -62,7 +80,8 @@ pub struct Scratch {
 }
 
 impl<'a> VisibilitySampler<'a> {
-    /// A sampler of `mesh` (the caster built over it) towards unit directions `dirs`.
+    /// A sampler of `function` of the vertices of `mesh` (the caster built over it) towards
+    /// unit directions `dirs`.
     ///
     /// # Errors
     /// [`BakeError::Scene`] for an inconsistent mesh.
@@ -70,6 +89,7 @@ impl<'a> VisibilitySampler<'a> {
         mesh: &'a TriMesh,
         caster: &'a dyn RayCaster,
         dirs: &'a [Vec3],
+        function: CutFunction,
     ) -> Result<Self, BakeError> {
         check_mesh_geometry(mesh)?;
         Ok(VisibilitySampler {
@@ -77,10 +97,12 @@ impl<'a> VisibilitySampler<'a> {
             caster,
             dirs,
             ng: vertex_geometric_normals(mesh),
+            function,
         })
     }
 
-    /// Fill `out[i]` (one per direction) with vertex `v`'s `V(w_i) max(0, n . w_i)`.
+    /// Fill `out[i]` (one per direction) with vertex `v`'s function towards `w_i`
+    /// ([`CutFunction`]).
     ///
     /// # Panics
     /// If `out.len()` differs from the number of directions or `v` is out of range.
@@ -100,7 +122,10 @@ impl<'a> VisibilitySampler<'a> {
             if c > 0.0 {
                 s.rays.push(surface_ray(p, self.ng[v], w));
                 s.lights.push(i as u32);
-                s.cosines.push(c.min(1.0));
+                s.cosines.push(match self.function {
+                    CutFunction::VisibilityCosine => c.min(1.0),
+                    CutFunction::Visibility => 1.0,
+                });
             }
         }
         s.occluded.clear();

@@ -11,9 +11,10 @@
 //! 3. the whole mesh's bake extrapolated from the block's time per vertex, against the
 //!    target;
 //! 4. the illumination cut of a procedural sky with a sun at the budgets 128, 256 and 512;
-//! 5. (not with `quick`) the data-driven light trees of sec. 3.4 (pilot pass over every
-//!    vertex, 1024 vertex clusters, beta 0.5 and 0) against the geometric tree: build time
-//!    and mean cut length on the same block (the paper's Fig. 8b).
+//! 5. (not with `quick`) for both cut functions (visibility times cosine, binary visibility),
+//!    the data-driven light trees of sec. 3.4 (pilot pass over every vertex, 1024 vertex
+//!    clusters, beta 0.5 and 0) against the geometric tree: build time and mean cut length
+//!    on the same block (the paper's Fig. 8b).
 
 use super::{median_ms, Section};
 use crate::Result;
@@ -22,7 +23,7 @@ use rayon::prelude::*;
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
 use relight_bake::cuts::samples::{sample_radiance, EnvSamples, DEFAULT_SAMPLES};
 use relight_bake::cuts::tree::{LightTree, DEFAULT_BETA, DEFAULT_K, DEFAULT_VERTEX_CLUSTERS};
-use relight_bake::cuts::visibility::{CutParams, Scratch, VisibilitySampler};
+use relight_bake::cuts::visibility::{CutFunction, CutParams, Scratch, VisibilitySampler};
 use relight_bake::BakeError;
 use relight_method::MethodError;
 use relight_scene::accel;
@@ -63,7 +64,13 @@ pub(super) fn sections(
     let tree_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let caster = accel::build_default(&mesh);
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &samples.dirs).map_err(err)?;
+    let sampler = VisibilitySampler::new(
+        &mesh,
+        caster.as_ref(),
+        &samples.dirs,
+        CutFunction::VisibilityCosine,
+    )
+    .map_err(err)?;
     let nv = mesh.vertex_count();
     let block = if quick { 64 } else { 1024 }.min(nv);
     let range = nv / 2 - block / 2..nv / 2 - block / 2 + block;
@@ -170,6 +177,7 @@ pub(super) fn sections(
         let mut kinds = Section::new(
             format!("Light trees on {name}: mean cut of the same {block} vertices"),
             &[
+                "function",
                 "tree",
                 "beta",
                 "pilot pass (s)",
@@ -178,34 +186,45 @@ pub(super) fn sections(
                 "capped",
             ],
         );
-        kinds.row(vec![
-            json!("geometric"),
-            json!(1.0),
-            json!(0.0),
-            json!(tree_ms / 1e3),
-            json!(cuts.mean_len()),
-            json!(cuts.capped.len()),
-        ]);
-        let t0 = Instant::now();
-        let pilot = sampler
-            .pilot_vectors(DEFAULT_VERTEX_CLUSTERS, DEFAULT_K, None, false)
-            .map_err(err)?;
-        let pilot_s = t0.elapsed().as_secs_f64();
         let normals: Vec<Vec3> = samples.dirs.iter().map(|&d| -d).collect();
-        for beta in [DEFAULT_BETA, 0.0] {
-            let t0 = Instant::now();
-            let dd = LightTree::data_driven(&samples.dirs, &normals, &pilot, DEFAULT_K, beta)
-                .map_err(|e| err(e.into()))?;
-            let build_s = t0.elapsed().as_secs_f64();
-            let c = sampler.cuts(&dd, range.clone(), &params).map_err(err)?;
+        for function in [CutFunction::VisibilityCosine, CutFunction::Visibility] {
+            let fname = match function {
+                CutFunction::VisibilityCosine => "V max(0, cos)",
+                CutFunction::Visibility => "V",
+            };
+            let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &samples.dirs, function)
+                .map_err(err)?;
+            let c = sampler.cuts(&tree, range.clone(), &params).map_err(err)?;
             kinds.row(vec![
-                json!("data-driven"),
-                json!(beta),
-                json!(pilot_s),
-                json!(build_s),
+                json!(fname),
+                json!("geometric"),
+                json!(1.0),
+                json!(0.0),
+                json!(tree_ms / 1e3),
                 json!(c.mean_len()),
                 json!(c.capped.len()),
             ]);
+            let t0 = Instant::now();
+            let pilot = sampler
+                .pilot_vectors(DEFAULT_VERTEX_CLUSTERS, DEFAULT_K, None, false)
+                .map_err(err)?;
+            let pilot_s = t0.elapsed().as_secs_f64();
+            for beta in [DEFAULT_BETA, 0.0] {
+                let t0 = Instant::now();
+                let dd = LightTree::data_driven(&samples.dirs, &normals, &pilot, DEFAULT_K, beta)
+                    .map_err(|e| err(e.into()))?;
+                let build_s = t0.elapsed().as_secs_f64();
+                let c = sampler.cuts(&dd, range.clone(), &params).map_err(err)?;
+                kinds.row(vec![
+                    json!(fname),
+                    json!("data-driven"),
+                    json!(beta),
+                    json!(pilot_s),
+                    json!(build_s),
+                    json!(c.mean_len()),
+                    json!(c.capped.len()),
+                ]);
+            }
         }
         sections.push(kinds);
     }

@@ -28,16 +28,22 @@ fn params(sigma: f32, max_nodes: usize, threads: Option<usize>) -> CutParams {
 }
 
 #[test]
-fn unoccluded_vertex_sees_the_clamped_cosine() {
+fn unoccluded_vertex_sees_the_clamped_cosine_or_one() {
     let mesh = ground_plane(Vec3::ZERO, 2.0, 2);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(4096, 0).unwrap();
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
-    let mut out = vec![0.0; 4096];
-    for v in 0..mesh.vertex_count() {
-        sampler.sample(v, &mut out, &mut Scratch::default());
-        for (&x, w) in out.iter().zip(&s.dirs) {
-            assert_eq!(x, w.y.clamp(0.0, 1.0));
+    for function in [CutFunction::VisibilityCosine, CutFunction::Visibility] {
+        let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs, function).unwrap();
+        let mut out = vec![0.0; 4096];
+        for v in 0..mesh.vertex_count() {
+            sampler.sample(v, &mut out, &mut Scratch::default());
+            for (&x, w) in out.iter().zip(&s.dirs) {
+                let expect = match function {
+                    CutFunction::VisibilityCosine => w.y.clamp(0.0, 1.0),
+                    CutFunction::Visibility => (w.y > 0.0) as u8 as f32,
+                };
+                assert_eq!(x, expect);
+            }
         }
     }
 }
@@ -45,29 +51,37 @@ fn unoccluded_vertex_sees_the_clamped_cosine() {
 #[test]
 fn shadow_of_a_sphere_matches_the_closed_form() {
     // A point on the plane under a sphere of radius r centred at height h: the sphere hides
-    // the cone of half-angle asin(r / h) around +Y, so
-    // int V max(0, cos) dw = pi (1 - (r / h)^2) (the cap's cosine integral is pi sin^2).
+    // the cone of half-angle a = asin(r / h) around +Y, so int V max(0, cos) dw =
+    // pi (1 - sin^2 a) (the cap's cosine integral is pi sin^2 a) and int V [cos > 0] dw =
+    // 2 pi - 2 pi (1 - cos a).
     let mesh = sphere_over_plane(48);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(32768, 0).unwrap();
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
     let centre = (0..mesh.vertex_count())
         .find(|&v| mesh.positions[v].length() < 1e-6)
         .expect("the plane has a vertex at the origin");
-    let mut out = vec![0.0; s.len()];
-    sampler.sample(centre, &mut out, &mut Scratch::default());
-    let integral: f64 = out
-        .iter()
-        .zip(&s.solid_angles)
-        .map(|(&v, &w)| v as f64 * w as f64)
-        .sum();
-    let exact = std::f64::consts::PI * (1.0 - 0.25);
-    // The 48 x 96 tessellated sphere is inscribed (slightly smaller shadow), and the samples'
-    // Voronoi cells straddle its rim: 1%.
-    assert!(
-        (integral - exact).abs() < 0.01 * exact,
-        "{integral} vs {exact}"
-    );
+    let sin_a = 0.5f64;
+    let cos_a = (1.0 - sin_a * sin_a).sqrt();
+    let pi = std::f64::consts::PI;
+    for (function, exact) in [
+        (CutFunction::VisibilityCosine, pi * (1.0 - sin_a * sin_a)),
+        (CutFunction::Visibility, 2.0 * pi * cos_a),
+    ] {
+        let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs, function).unwrap();
+        let mut out = vec![0.0; s.len()];
+        sampler.sample(centre, &mut out, &mut Scratch::default());
+        let integral: f64 = out
+            .iter()
+            .zip(&s.solid_angles)
+            .map(|(&v, &w)| v as f64 * w as f64)
+            .sum();
+        // The 48 x 96 tessellated sphere is inscribed (slightly smaller shadow), and the
+        // samples' Voronoi cells straddle its rim: 1%.
+        assert!(
+            (integral - exact).abs() < 0.01 * exact,
+            "{function:?}: {integral} vs {exact}"
+        );
+    }
 }
 
 #[test]
@@ -146,7 +160,13 @@ fn a_vertex_that_sees_nothing_has_one_zero_node() {
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(2048, 0).unwrap();
     let tree = LightTree::environment(&s.dirs).unwrap();
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
+    let sampler = VisibilitySampler::new(
+        &mesh,
+        caster.as_ref(),
+        &s.dirs,
+        CutFunction::VisibilityCosine,
+    )
+    .unwrap();
     let cuts = sampler
         .cuts(&tree, 0..mesh.vertex_count(), &params(2.0, 1000, None))
         .unwrap();
@@ -167,7 +187,13 @@ fn capped_cuts_are_reported() {
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(2048, 0).unwrap();
     let tree = LightTree::environment(&s.dirs).unwrap();
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
+    let sampler = VisibilitySampler::new(
+        &mesh,
+        caster.as_ref(),
+        &s.dirs,
+        CutFunction::VisibilityCosine,
+    )
+    .unwrap();
     let cuts = sampler.cuts(&tree, 0..50, &params(0.05, 20, None)).unwrap();
     cuts.validate(&tree).unwrap();
     // Every vertex of the plane sees a cosine varying over the sky: sigma 0.05 needs more
@@ -186,7 +212,13 @@ fn pilot_vectors_match_the_slow_mean_and_drive_a_valid_tree() {
     let mesh = sphere_over_plane(16);
     let caster = build(&mesh, Backend::Bvh).unwrap();
     let s = EnvSamples::fibonacci(512, 0).unwrap();
-    let sampler = VisibilitySampler::new(&mesh, caster.as_ref(), &s.dirs).unwrap();
+    let sampler = VisibilitySampler::new(
+        &mesh,
+        caster.as_ref(),
+        &s.dirs,
+        CutFunction::VisibilityCosine,
+    )
+    .unwrap();
     let m = 16;
     let pilot = sampler.pilot_vectors(m, 30.0, None, false).unwrap();
     assert_eq!((pilot.lights, pilot.clusters), (512, m));
