@@ -23,8 +23,9 @@
 //! 9. [`sg_frame`]: the SG frame (512 x 512, ~15K vertices) against the SH frame of the same
 //!    scene.
 //! 10. [`cuts_bake`]: cuts bake of the bunny (light samples, light tree, visibility cuts of a
-//!    block of vertices against casting the same rays), extrapolated to the whole mesh; the
-//!    illumination cut at the budgets 128, 256, 512.
+//!     block of vertices against casting the same rays), extrapolated to the whole mesh; the
+//!     illumination cut at the budgets 128, 256, 512; the per-pixel merge kernel; light-tree
+//!     variants.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
 //! repeated calls after a warm-up) and [`process_cpu_ms`] (CPU time of all threads, which a

@@ -11,7 +11,12 @@
 //! 3. the whole mesh's bake extrapolated from the block's time per vertex, against the
 //!    target;
 //! 4. the illumination cut of a procedural sky with a sun at the budgets 128, 256 and 512;
-//! 5. (not with `quick`) for both cut functions (visibility times cosine, binary visibility),
+//! 5. the per-pixel kernel [`shade`] (three vertex cuts of a triangle of the block,
+//!    barycentric interpolation, light cut, BRDF at every merged cluster's direction) on one
+//!    thread, Lambert and GGX conductor, at each light-cut budget, with the paper's binary
+//!    visibility cuts; extrapolated to a 512 x 512 frame on every thread against the issue's
+//!    6.4 fps;
+//! 6. (not with `quick`) for both cut functions (visibility times cosine, binary visibility),
 //!    the data-driven light trees of sec. 3.4 (pilot pass over every vertex, 1024 vertex
 //!    clusters, beta 0.5 and 0) against the geometric tree: build time and mean cut length
 //!    on the same block (the paper's Fig. 8b).
@@ -21,15 +26,20 @@ use crate::Result;
 use glam::Vec3;
 use rayon::prelude::*;
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
+use relight_bake::cuts::merge::{merge_cuts, shade, CutKeys};
 use relight_bake::cuts::samples::{sample_radiance, EnvSamples, DEFAULT_SAMPLES};
 use relight_bake::cuts::tree::{LightTree, DEFAULT_BETA, DEFAULT_K, DEFAULT_VERTEX_CLUSTERS};
 use relight_bake::cuts::visibility::{CutFunction, CutParams, Scratch, VisibilitySampler};
 use relight_bake::BakeError;
 use relight_method::MethodError;
-use relight_scene::accel;
+use relight_scene::accel::{self, RayCaster};
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
+use relight_sphere::warp::{Frame, Rng};
 use relight_sphere::EnvMap;
 use serde_json::json;
+use std::ops::Range;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -172,7 +182,19 @@ pub(super) fn sections(
             json!(met),
         ]);
     }
-    let mut sections = vec![bake, lc];
+    let mut sections = vec![
+        bake,
+        lc,
+        shade_section(
+            &mesh,
+            &samples,
+            &tree,
+            &power,
+            range.clone(),
+            caster.as_ref(),
+            quick,
+        )?,
+    ];
     if !quick {
         let mut kinds = Section::new(
             format!("Light trees on {name}: mean cut of the same {block} vertices"),
@@ -229,4 +251,119 @@ pub(super) fn sections(
         sections.push(kinds);
     }
     Ok(sections)
+}
+
+/// Per-pixel cost of [`shade`] (see the module docs, item 5).
+fn shade_section(
+    mesh: &TriMesh,
+    samples: &EnvSamples,
+    tree: &LightTree,
+    power: &[Vec3],
+    range: Range<usize>,
+    caster: &dyn RayCaster,
+    quick: bool,
+) -> Result<Section> {
+    let err = |e: BakeError| MethodError::from(e);
+    let sampler = VisibilitySampler::new(mesh, caster, &samples.dirs, CutFunction::Visibility)
+        .map_err(err)?;
+    let params = CutParams {
+        sigma: relight_bake::cuts::cut::DEFAULT_SIGMA,
+        max_nodes: relight_bake::cuts::cut::DEFAULT_MAX_CUT,
+        threads: None,
+        progress: false,
+    };
+    let cuts = sampler.cuts(tree, range.clone(), &params).map_err(err)?;
+    // Triangles with their three vertices in the block (else consecutive vertex triples).
+    let start = range.start as u32;
+    let mut tris: Vec<[u32; 3]> = mesh
+        .indices
+        .iter()
+        .filter(|t| t.iter().all(|&v| range.contains(&(v as usize))))
+        .map(|t| t.map(|v| v - start))
+        .collect();
+    if tris.is_empty() {
+        tris = (0..range.len() as u32 / 3)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+    }
+    let pixels = if quick { 2_000 } else { 20_000 };
+    let materials = [
+        (
+            "Lambert",
+            Material::Lambert {
+                albedo: Vec3::splat(0.7),
+            },
+        ),
+        (
+            "GGX conductor a=0.2",
+            Material::GgxConductor {
+                specular: Vec3::splat(0.9),
+                alpha: 0.2,
+            },
+        ),
+    ];
+    let threads = rayon::current_num_threads();
+    let mut sec = Section::new(
+        format!(
+            "Cuts per-pixel shading (binary visibility cuts, mean {:.0} nodes; {} triangles), \
+             one thread, 512 x 512 extrapolated to {threads} threads",
+            cuts.mean_len(),
+            tris.len()
+        ),
+        &[
+            "material",
+            "light cut",
+            "merged nodes",
+            "per pixel (us)",
+            "512x512 frame (ms)",
+            "target (ms)",
+        ],
+    );
+    for (mname, mat) in materials {
+        for budget in LIGHT_CUT_BUDGETS {
+            let lc = LightCut::build(tree, power, DEFAULT_LIGHT_SIGMA, budget)
+                .map_err(|e| err(e.into()))?;
+            let mut rng = Rng::new(5, budget as u64);
+            let t0 = Instant::now();
+            let mut acc = Vec3::ZERO;
+            for _ in 0..pixels {
+                let t = tris[rng.next_below(tris.len() as u32) as usize];
+                let (a, b) = (rng.next_f32(), rng.next_f32());
+                let (a, b) = if a + b > 1.0 {
+                    (1.0 - a, 1.0 - b)
+                } else {
+                    (a, b)
+                };
+                let bary = [1.0 - a - b, a, b];
+                let n = (mesh.normals[t[0] as usize + start as usize]
+                    + mesh.normals[t[1] as usize + start as usize]
+                    + mesh.normals[t[2] as usize + start as usize])
+                    .normalize_or(Vec3::Y);
+                let frame = Frame::from_normal(n);
+                let wi = frame.to_local((n + Vec3::new(0.3, 0.2, 0.1)).normalize());
+                let vc = [0, 1, 2].map(|k| cuts.cut(t[k] as usize));
+                acc += shade(tree, &lc, vc, bary, |w| mat.eval(wi, frame.to_local(w)));
+            }
+            std::hint::black_box(acc);
+            let us = t0.elapsed().as_secs_f64() * 1e6 / pixels as f64;
+            // Merged clusters per pixel (the traversal's length), counted apart from the
+            // timing.
+            let mut merged = 0usize;
+            for t in &tris {
+                let vc = [0, 1, 2].map(|k| CutKeys::from(cuts.cut(t[k] as usize)));
+                merge_cuts([CutKeys::from(&lc), vc[0], vc[1], vc[2]], |_, _| {
+                    merged += 1
+                });
+            }
+            sec.row(vec![
+                json!(mname),
+                json!(budget),
+                json!(merged as f64 / tris.len() as f64),
+                json!(us),
+                json!(us * 512.0 * 512.0 / threads as f64 / 1e3),
+                json!(1e3 / 6.4),
+            ]);
+        }
+    }
+    Ok(sec)
 }
