@@ -42,6 +42,37 @@
 //!   increasing index, which is left-to-right order, whose leaves tile all leaves once.
 //! * **Error of a node**: `M2 = sum_{i in C} (x_i - <x>)^2 = |C| var(x)`, so Eq. 6 reads
 //!   `M2 <= sigma^2`.
+//!
+//! ## Example: bake, light cut, one shaded point
+//!
+//! ```
+//! use relight_bake::cuts::{bake_range, light_cut::LightCut, merge::shade};
+//! use relight_bake::cuts::{samples::sample_radiance, CutsBakeSettings};
+//! use relight_scene::{accel, scene::Environment, shapes};
+//! use relight_sphere::{EnvMap, Vec3};
+//! # fn main() -> Result<(), relight_bake::BakeError> {
+//! // A sphere floating over a 4 x 4 plane; vertex 0 is the plane's corner (-2, 0, -2).
+//! let mut mesh = shapes::ground_plane(Vec3::ZERO, 4.0, 2);
+//! mesh.append(&shapes::uv_sphere(Vec3::new(0.0, 1.5, 0.0), 1.0, 8, 16), 0);
+//! let caster = accel::build(&mesh, accel::Backend::Bvh).expect("our BVH always builds");
+//! let settings = CutsBakeSettings { lights: 1024, ..Default::default() };
+//! let bake = bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count())?;
+//! bake.validate().expect("a fresh bake is valid");
+//! // A white sky: each light sample's power is its solid angle.
+//! let env = Environment::new(EnvMap::constant(Vec3::ONE));
+//! let radiance = sample_radiance(&bake.samples, &env)?;
+//! let power: Vec<Vec3> =
+//!     radiance.iter().zip(&bake.samples.solid_angles).map(|(&l, &w)| l * w).collect();
+//! let light = LightCut::build(&bake.tree, &power, 2.0, 256)?;
+//! // A white Lambertian corner (BRDF 1 / pi; the cosine is in the cuts): int V cos / pi,
+//! // 1 without the sphere, which hides about 5% of the cosine-weighted sky.
+//! let c = bake.cuts.cut(0);
+//! let b = shade(&bake.tree, &light, [c, c, c], [1.0, 0.0, 0.0], |_| {
+//!     Vec3::splat(std::f32::consts::FRAC_1_PI)
+//! });
+//! assert!(b.x > 0.9 && b.x < 0.99, "{b}");
+//! # Ok(()) }
+//! ```
 
 pub mod cut;
 pub mod light_cut;
