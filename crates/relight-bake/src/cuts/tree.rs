@@ -111,6 +111,9 @@ pub struct LightTree {
     nodes: Vec<TreeNode>,
     /// Mean light position of every node's cluster.
     centers: Vec<Vec3>,
+    /// Representative unit direction of every node ([`LightTree::direction`]), computed once:
+    /// the per-pixel merge reads it at every merged cluster.
+    dirs: Vec<Vec3>,
     /// Post-order index of each light's leaf.
     leaf_of_light: Vec<u32>,
 }
@@ -188,9 +191,21 @@ impl LightTree {
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * n - 1),
             centers: Vec::with_capacity(2 * n - 1),
+            dirs: Vec::new(),
             leaf_of_light: vec![0; n],
         };
         tree.emit(&order, 0, positions);
+        tree.dirs = (0..tree.nodes.len())
+            .map(|i| {
+                let c = tree.centers[i];
+                if c.length_squared() > 1e-12 {
+                    c.normalize()
+                } else {
+                    let leftmost = tree.centers[tree.nodes[i].leftleaf as usize];
+                    leftmost.normalize_or(Vec3::Y)
+                }
+            })
+            .collect();
         tree
     }
 
@@ -261,13 +276,9 @@ impl LightTree {
     /// Representative direction of node `i` for environment lights: its normalised mean
     /// direction, or its leftmost light's where the mean vanishes (a cluster as symmetric as
     /// the whole sphere).
+    #[inline]
     pub fn direction(&self, i: u32) -> Vec3 {
-        let c = self.centers[i as usize];
-        if c.length_squared() > 1e-12 {
-            c.normalize()
-        } else {
-            self.centers[self.nodes[i as usize].leftleaf as usize].normalize_or(Vec3::Y)
-        }
+        self.dirs[i as usize]
     }
 
     /// The lights in leaf order (left to right), i.e. by rank.
@@ -291,7 +302,11 @@ impl LightTree {
     /// The first broken invariant.
     pub fn validate(&self) -> Result<(), TreeError> {
         let n = self.leaf_of_light.len();
-        if n < 2 || self.nodes.len() != 2 * n - 1 || self.centers.len() != self.nodes.len() {
+        if n < 2
+            || self.nodes.len() != 2 * n - 1
+            || self.centers.len() != self.nodes.len()
+            || self.dirs.len() != self.nodes.len()
+        {
             return Err(TreeError::Size {
                 lights: n,
                 nodes: self.nodes.len(),
@@ -303,6 +318,10 @@ impl LightTree {
         for (p, node) in self.nodes.iter().enumerate() {
             if !self.centers[p].is_finite() {
                 return bad(p, "non-finite centre");
+            }
+            // 1e-5: f32 normalisation.
+            if !((self.dirs[p].length() - 1.0).abs() < 1e-5) {
+                return bad(p, "direction not unit");
             }
             if node.leaves == 0 || node.leftleaf as usize + 2 * node.leaves as usize != p + 2 {
                 return bad(p, "leftleaf is not index - 2 (leaves - 1)");
@@ -559,6 +578,9 @@ mod tests {
         assert!(broken.validate().is_err());
         let mut broken = t.clone();
         broken.centers[3] = Vec3::NAN;
+        assert!(broken.validate().is_err());
+        let mut broken = t.clone();
+        broken.dirs[4] *= 2.0;
         assert!(broken.validate().is_err());
         let mut broken = t.clone();
         broken.nodes.pop();
