@@ -320,7 +320,8 @@ impl LightTree {
                 return bad(p, "non-finite centre");
             }
             // 1e-5: f32 normalisation.
-            if !((self.dirs[p].length() - 1.0).abs() < 1e-5) {
+            let unit = (self.dirs[p].length() - 1.0).abs() < 1e-5;
+            if !unit {
                 return bad(p, "direction not unit");
             }
             if node.leaves == 0 || node.leftleaf as usize + 2 * node.leaves as usize != p + 2 {
