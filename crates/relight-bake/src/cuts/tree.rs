@@ -182,19 +182,58 @@ impl LightTree {
         Ok(Self::from_features(positions, &features, dim))
     }
 
+    /// The tree over lights at `positions` whose leaves, left to right, are the lights
+    /// `order` (what a bundle stores: the shape of a complete tree is fixed by the light
+    /// count, so the leaf order is the whole tree). `from_leaf_order(p, &t.lights_in_order())`
+    /// rebuilds `t`.
+    ///
+    /// # Errors
+    /// [`CutsError::TooFewLights`]; [`CutsError::Input`] when `order` is not a permutation of
+    /// the lights or a position is not finite.
+    pub fn from_leaf_order(positions: &[Vec3], order: &[u32]) -> Result<Self, CutsError> {
+        let n = positions.len();
+        if n < 2 {
+            return Err(CutsError::TooFewLights { count: n });
+        }
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(CutsError::Input("non-finite light position".into()));
+        }
+        let mut seen = vec![false; n];
+        for &l in order {
+            if l as usize >= n || std::mem::replace(&mut seen[l as usize], true) {
+                return Err(CutsError::Input(format!(
+                    "leaf order repeats light {l} or names a light outside 0..{n}"
+                )));
+            }
+        }
+        if order.len() != n {
+            return Err(CutsError::Input(format!(
+                "leaf order of {} lights for {n} lights",
+                order.len()
+            )));
+        }
+        Ok(Self::from_order(positions, order))
+    }
+
     /// Build from per-light features (`dim` each; the metric is their squared distance).
     fn from_features(positions: &[Vec3], features: &[f32], dim: usize) -> Self {
         let n = positions.len();
         let mut order: Vec<u32> = (0..n as u32).collect();
         let mut groups = Vec::new();
         split_groups(features, dim, &mut order, n, &mut groups);
+        Self::from_order(positions, &order)
+    }
+
+    /// The complete tree whose leaves, left to right, are `order` (a permutation).
+    fn from_order(positions: &[Vec3], order: &[u32]) -> Self {
+        let n = positions.len();
         let mut tree = LightTree {
             nodes: Vec::with_capacity(2 * n - 1),
             centers: Vec::with_capacity(2 * n - 1),
             dirs: Vec::new(),
             leaf_of_light: vec![0; n],
         };
-        tree.emit(&order, 0, positions);
+        tree.emit(order, 0, positions);
         tree.dirs = (0..tree.nodes.len())
             .map(|i| {
                 let c = tree.centers[i];
@@ -531,6 +570,22 @@ mod tests {
             lights.sort_unstable();
             assert_eq!(lights, (0..n as u32).collect::<Vec<_>>());
         }
+    }
+
+    #[test]
+    fn leaf_order_rebuilds_the_tree() {
+        for n in [2usize, 3, 17, 1000] {
+            let d = sphere(n);
+            let t = LightTree::environment(&d).unwrap();
+            let again = LightTree::from_leaf_order(&d, &t.lights_in_order()).unwrap();
+            again.validate().unwrap();
+            assert_eq!(again, t);
+        }
+        let d = sphere(4);
+        assert!(LightTree::from_leaf_order(&d, &[0, 1, 2]).is_err());
+        assert!(LightTree::from_leaf_order(&d, &[0, 1, 2, 2]).is_err());
+        assert!(LightTree::from_leaf_order(&d, &[0, 1, 2, 4]).is_err());
+        assert!(LightTree::from_leaf_order(&d[..1], &[0]).is_err());
     }
 
     #[test]
