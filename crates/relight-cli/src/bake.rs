@@ -3,8 +3,10 @@
 use crate::args::{self, arg_names, given, refuse_foreign, Out};
 use anyhow::{bail, Context, Result};
 use clap::ArgMatches;
+use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_method::cuts::Cuts;
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::shard::{bake_part, Shard};
@@ -71,6 +73,9 @@ pub struct Args {
     /// SG material blend.
     #[command(flatten)]
     pub blend: BlendArgs,
+    /// Cuts options.
+    #[command(flatten)]
+    pub cuts: CutsBakeSettings,
 }
 
 /// `relight bake --method sg`'s spatially varying material (thesis 2.3.1).
@@ -114,6 +119,7 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
                 arg_names::<ShBakeSettings>(),
             ),
             (&[MethodKind::Sg], sg),
+            (&[MethodKind::Cuts], arg_names::<CutsBakeSettings>()),
         ],
     )?;
     if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
@@ -228,6 +234,29 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             );
             bake_one::<Sg>(input, &s, a.shard, &ctx)?
         }
+        relight_method::BakeKind::Cuts => {
+            let s = CutsBakeSettings {
+                seed: a.seed,
+                ..a.cuts
+            };
+            Cuts::validate(&s)?;
+            eprintln!(
+                "{what}: cuts, {} lights, {:?} light tree, sigma {}, cap {}",
+                s.lights, s.tree, s.sigma, s.max_cut
+            );
+            match a.checkpoint_vertices {
+                Some(n) => relight_method::checkpoint::bake_resumable::<Cuts>(
+                    input,
+                    &s,
+                    &ctx,
+                    &a.out,
+                    usize::try_from(n).unwrap_or(usize::MAX),
+                    a.resume,
+                    |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
+                )?,
+                None => bake_one::<Cuts>(input, &s, a.shard, &ctx)?,
+            }
+        }
     };
     if a.checkpoint_vertices.is_none() {
         baked.write(&a.out)?; // (a checkpointed bake has written it)
@@ -275,8 +304,12 @@ fn report(path: &Path, baked: &Baked, out: &Out) {
         peak.map_or(String::new(), |m| format!(", peak memory {m:.0} MiB"))
     ));
     let mut extra = json!({});
-    if let Baked::Sg(sg) = baked {
-        let (lines, j) = sg.describe();
+    let described = match baked {
+        Baked::Sg(sg) => Some(sg.describe()),
+        Baked::Cuts(cuts) => Some(cuts.describe()),
+        Baked::Sh(_) => None,
+    };
+    if let Some((lines, j)) = described {
         lines.into_iter().for_each(|l| out.line(l));
         extra = j;
     }

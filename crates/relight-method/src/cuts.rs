@@ -1,19 +1,84 @@
-//! The `cuts` method (Cheslack-Postava et al. 2008, issue 11), **first part of its seam**: the
-//! baked type, its checks and its bundle tensors. The maths and the bake loop are
-//! `relight_bake::cuts`.
-//!
-//! Not yet here (the next steps of "how to add a method"): `impl Method`, the arms of
-//! [`crate::MethodKind`], [`crate::BakeKind`], [`crate::Baked`] and [`crate::FrameSettings`],
-//! the frame (`relight_render::shade_cuts`), the CLI. Until then [`crate::read_any`] does not
-//! read a `cuts` bundle; [`load`] does.
+//! The `cuts` method (Cheslack-Postava et al. 2008, issue 11): the bake is
+//! `relight_bake::cuts` (light samples, light tree, per-vertex visibility cuts), the frame
+//! `relight_render::shade_cuts` (per pixel: three vertex cuts merged with the frame's
+//! illumination cut and the scene's materials evaluated at run time).
 
+mod frame;
 mod store;
 
+pub use frame::{CutsFrame, CutsFrameSettings};
 pub use store::{load, store};
 
 use crate::store::{BakeRecord, BakedScene};
+use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError};
 use relight_bake::cuts::{CutsBake, CutsBakeSettings};
+use relight_bundle::Bundle;
 use relight_scene::error::Invalid;
+use std::ops::Range;
+use std::path::Path;
+use std::time::Instant;
+
+/// The `cuts` method's bake verbs.
+pub struct Cuts;
+
+impl Method for Cuts {
+    const KIND: BakeKind = BakeKind::Cuts;
+    type Settings = CutsBakeSettings;
+    type Baked = CutsBaked;
+
+    fn validate(s: &CutsBakeSettings) -> Result<(), MethodError> {
+        Ok(s.validate()?)
+    }
+
+    /// Vertices are independent (the light samples depend on the seed, a data-driven tree
+    /// on a pilot pass over every vertex), so a range bakes exactly those rows of the whole
+    /// bake.
+    fn bake(
+        input: BakeInput,
+        settings: &CutsBakeSettings,
+        range: Range<usize>,
+        ctx: &BakeContext,
+    ) -> Result<CutsBaked, MethodError> {
+        Cuts::validate(settings)?;
+        let n = input.scene.mesh.vertex_count();
+        let t0 = Instant::now();
+        let caster = build_caster(&input, ctx)?;
+        let run = CutsBakeSettings {
+            progress: ctx.progress,
+            ..*settings
+        };
+        let bake = relight_bake::cuts::bake_range(
+            &input.scene.mesh,
+            caster.as_ref(),
+            &run,
+            range.clone(),
+        )?;
+        Ok(CutsBaked {
+            scene: BakedScene::of(&input),
+            bake,
+            settings: CutsBakeSettings {
+                progress: false,
+                threads: None,
+                ..*settings
+            },
+            record: BakeRecord::new(
+                caster.name(),
+                t0.elapsed().as_secs_f64(),
+                ctx.f16,
+                &range,
+                n,
+            ),
+        })
+    }
+
+    fn store(b: &CutsBaked) -> Result<Bundle, MethodError> {
+        store::store(b)
+    }
+
+    fn load(bundle: &Bundle, path: &Path) -> Result<CutsBaked, MethodError> {
+        store::load(bundle, path)
+    }
+}
 
 /// Everything a `cuts` bundle holds.
 #[derive(Clone, Debug)]
@@ -29,6 +94,28 @@ pub struct CutsBaked {
 }
 
 impl CutsBaked {
+    /// A human description (one line each) and the same figures as JSON: lights, tree,
+    /// mean cut length, capped cuts (what `relight bake` and `relight info` print).
+    pub fn describe(&self) -> (Vec<String>, serde_json::Value) {
+        let (s, c) = (&self.settings, &self.bake.cuts);
+        let lines = vec![format!(
+            "cuts (Cheslack-Postava 2008): {} lights, {:?} light tree, sigma {}, {:?}; mean cut {:.1} nodes, {} cuts capped at {}",
+            s.lights,
+            s.tree,
+            s.sigma,
+            s.function,
+            c.mean_len(),
+            c.capped.len(),
+            s.max_cut
+        )];
+        let json = serde_json::json!({
+            "lights": s.lights,
+            "mean_cut": c.mean_len(),
+            "capped": c.capped.len(),
+        });
+        (lines, json)
+    }
+
     /// The vertices baked: the record's range, or the whole mesh.
     pub fn vertex_range(&self) -> std::ops::Range<usize> {
         match self.record.range {

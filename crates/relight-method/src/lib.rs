@@ -73,11 +73,19 @@ pub enum MethodKind {
     Hybrid,
     /// View-dependent glossy PRT with spherical Gaussians (Green 2005).
     Sg,
+    /// Precomputed visibility cuts merged per pixel with the illumination cut, materials
+    /// evaluated at render time (Cheslack-Postava et al. 2008).
+    Cuts,
 }
 
 impl MethodKind {
     /// Every method.
-    pub const ALL: [MethodKind; 3] = [MethodKind::Sh, MethodKind::Hybrid, MethodKind::Sg];
+    pub const ALL: [MethodKind; 4] = [
+        MethodKind::Sh,
+        MethodKind::Hybrid,
+        MethodKind::Sg,
+        MethodKind::Cuts,
+    ];
 
     /// The name on the command line.
     pub fn name(self) -> &'static str {
@@ -85,6 +93,7 @@ impl MethodKind {
             MethodKind::Sh => "sh",
             MethodKind::Hybrid => "hybrid",
             MethodKind::Sg => "sg",
+            MethodKind::Cuts => "cuts",
         }
     }
 
@@ -93,6 +102,7 @@ impl MethodKind {
         match self {
             MethodKind::Sh | MethodKind::Hybrid => BakeKind::Sh,
             MethodKind::Sg => BakeKind::Sg,
+            MethodKind::Cuts => BakeKind::Cuts,
         }
     }
 }
@@ -105,6 +115,9 @@ pub enum BakeKind {
     Sh,
     /// Per-vertex, per-view spherical Gaussians ([`sg::SgBaked`]), rendered by `sg`.
     Sg,
+    /// Light samples, light tree and per-vertex visibility cuts ([`cuts::CutsBaked`]),
+    /// rendered by `cuts`.
+    Cuts,
 }
 
 impl BakeKind {
@@ -113,6 +126,7 @@ impl BakeKind {
         match self {
             BakeKind::Sh => "sh",
             BakeKind::Sg => "sg",
+            BakeKind::Cuts => "cuts",
         }
     }
 
@@ -210,6 +224,8 @@ pub enum Baked {
     Sh(sh::ShBaked),
     /// An `sg` bake.
     Sg(sg::SgBaked),
+    /// A `cuts` bake.
+    Cuts(cuts::CutsBaked),
 }
 
 impl Baked {
@@ -218,6 +234,7 @@ impl Baked {
         match self {
             Baked::Sh(_) => BakeKind::Sh,
             Baked::Sg(_) => BakeKind::Sg,
+            Baked::Cuts(_) => BakeKind::Cuts,
         }
     }
 
@@ -226,6 +243,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &b.scene,
             Baked::Sg(b) => &b.scene,
+            Baked::Cuts(b) => &b.scene,
         }
     }
 
@@ -234,6 +252,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &b.record,
             Baked::Sg(b) => &b.record,
+            Baked::Cuts(b) => &b.record,
         }
     }
 
@@ -242,6 +261,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &mut b.record,
             Baked::Sg(b) => &mut b.record,
+            Baked::Cuts(b) => &mut b.record,
         }
     }
 
@@ -250,6 +270,7 @@ impl Baked {
         let s = match self {
             Baked::Sh(b) => &mut b.scene,
             Baked::Sg(b) => &mut b.scene,
+            Baked::Cuts(b) => &mut b.scene,
         };
         BakedScene {
             desc: s.desc.clone(),
@@ -263,6 +284,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => b.scene = scene,
             Baked::Sg(b) => b.scene = scene,
+            Baked::Cuts(b) => b.scene = scene,
         }
     }
 
@@ -271,6 +293,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => serde_json::to_string(&b.settings),
             Baked::Sg(b) => serde_json::to_string(&b.settings),
+            Baked::Cuts(b) => serde_json::to_string(&b.settings),
         }
         .unwrap_or_default()
     }
@@ -283,6 +306,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => sh::Sh::store(b),
             Baked::Sg(b) => sg::Sg::store(b),
+            Baked::Cuts(b) => cuts::Cuts::store(b),
         }
     }
 
@@ -313,6 +337,7 @@ impl Baked {
                 Ok(Box::new(hybrid::HybridFrame::new(b, s)?))
             }
             (Baked::Sg(b), FrameSettings::Sg(s)) => Ok(Box::new(sg::SgFrame::new(b, s)?)),
+            (Baked::Cuts(b), FrameSettings::Cuts(s)) => Ok(Box::new(cuts::CutsFrame::new(b, s)?)),
             _ => Err(MethodError::WrongBake {
                 path: path.to_path_buf(),
                 found: self.kind(),
@@ -346,6 +371,12 @@ impl From<sg::SgBaked> for Baked {
     }
 }
 
+impl From<cuts::CutsBaked> for Baked {
+    fn from(b: cuts::CutsBaked) -> Self {
+        Baked::Cuts(b)
+    }
+}
+
 /// Read any bundle and check it: the right [`Baked`] arm for its `method` metadata.
 ///
 /// # Errors
@@ -363,9 +394,10 @@ pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
     match method {
         "sh" => Ok(Baked::Sh(sh::Sh::load(b, path)?)),
         "sg" => Ok(Baked::Sg(sg::Sg::load(b, path)?)),
+        "cuts" => Ok(Baked::Cuts(cuts::Cuts::load(b, path)?)),
         m => Err(MethodError::invalid(
             path,
-            format!("unknown bake method '{m}' (this relight reads sh, sg)"),
+            format!("unknown bake method '{m}' (this relight reads sh, sg, cuts)"),
         )),
     }
 }
@@ -379,6 +411,8 @@ pub enum FrameSettings {
     Hybrid(hybrid::HybridSettings),
     /// `sg`.
     Sg(sg::SgFrameSettings),
+    /// `cuts`.
+    Cuts(cuts::CutsFrameSettings),
 }
 
 impl FrameSettings {
@@ -388,6 +422,7 @@ impl FrameSettings {
             FrameSettings::Sh(_) => MethodKind::Sh,
             FrameSettings::Hybrid(_) => MethodKind::Hybrid,
             FrameSettings::Sg(_) => MethodKind::Sg,
+            FrameSettings::Cuts(_) => MethodKind::Cuts,
         }
     }
 
@@ -397,6 +432,7 @@ impl FrameSettings {
             MethodKind::Sh => FrameSettings::Sh(Default::default()),
             MethodKind::Hybrid => FrameSettings::Hybrid(Default::default()),
             MethodKind::Sg => FrameSettings::Sg(Default::default()),
+            MethodKind::Cuts => FrameSettings::Cuts(Default::default()),
         }
     }
 }

@@ -20,7 +20,7 @@ use relight_bundle::{Bundle, DType, Tensor};
 use std::path::Path;
 
 /// The method name in bundles.
-pub const METHOD: &str = "cuts";
+const METHOD: &str = "cuts";
 
 /// The bundle of a `cuts` bake.
 ///
