@@ -160,3 +160,53 @@ fn corruptions_are_refused_by_name() {
     });
     assert!(msg.contains("cuts_dirs"), "{msg}");
 }
+
+#[test]
+fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
+    use crate::{Baked, FrameOptions, FrameSettings, MethodKind};
+    // The test scene's sphere sits on a plane; a lone sphere is convex: its cuts see the
+    // whole upper hemisphere of every vertex.
+    let b = baked(false, None);
+    let whole: Baked = b.into();
+    assert_eq!(whole.kind(), crate::BakeKind::Cuts);
+    let mut frame = whole
+        .frame(&FrameSettings::default_for(MethodKind::Cuts))
+        .unwrap();
+    assert_eq!(frame.method(), MethodKind::Cuts);
+    let env =
+        relight_scene::scene::Environment::new(relight_sphere::EnvMap::constant(glam::Vec3::ONE));
+    frame.set_environment(&env).unwrap();
+    let camera = whole.scene().desc.camera;
+    let out = frame.render(&camera, &FrameOptions::default());
+    assert_eq!(out.image.width, camera.width as usize);
+    assert!(out
+        .image
+        .pixels
+        .iter()
+        .all(|p| p.is_finite() && p.min_element() >= 0.0));
+    // Lit pixels exist and none exceeds the brightest albedo (0.8) by more than the cut
+    // approximation (2%).
+    let max = out
+        .image
+        .pixels
+        .iter()
+        .map(|p| p.max_element())
+        .fold(0.0, f32::max);
+    assert!(max > 0.1 && max < 0.8 * 1.02, "{max}");
+    assert!(
+        frame.summary().contains("light cut 256 nodes"),
+        "{}",
+        frame.summary()
+    );
+    // A part cannot be rendered.
+    let part: Baked = baked(false, Some(0..10)).into();
+    assert!(part
+        .frame(&FrameSettings::default_for(MethodKind::Cuts))
+        .is_err());
+    // Zero light-cut nodes are refused.
+    let bad = FrameSettings::Cuts(CutsFrameSettings {
+        light_cut: 0,
+        ..Default::default()
+    });
+    assert!(whole.frame(&bad).is_err());
+}
