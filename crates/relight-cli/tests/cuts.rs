@@ -86,6 +86,50 @@ fn bake_info_render_a_convex_lambert_sphere() {
         }
     }
     assert!(inside > 20);
+    // Materials are not baked: another one at render time, inline or from a file.
+    let mat = dir.join("white.json");
+    std::fs::write(&mat, r#"{"type": "lambert", "albedo": [0.9, 0.9, 0.9]}"#).unwrap();
+    for m in [s(&mat), r#"{"type": "lambert", "albedo": [0.9, 0.9, 0.9]}"#] {
+        let o = relight(&[
+            "render",
+            s(&b),
+            "-o",
+            s(&img),
+            "--light-cut",
+            "128",
+            "--supersample",
+            "1",
+            "--material",
+            m,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (_, _, px) = relight_scene::io::image::read_image(&img).unwrap();
+        let centre = px[9 * w + 12];
+        // As above: 2%.
+        assert!(
+            (centre - glam::Vec3::splat(0.9)).abs().max_element() < 0.02 * 0.9,
+            "{centre}"
+        );
+    }
+    let bad = dir.join("bad.exr");
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&bad),
+        "--material",
+        r#"{"type": "lambert", "albedo": [2, 0, 0]}"#,
+    ]);
+    assert_clean_failure(&o, "material", &bad);
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&bad),
+        "--material",
+        "/nonexistent/m.json",
+    ]);
+    assert_clean_failure(&o, "m.json", &bad);
 }
 
 #[test]

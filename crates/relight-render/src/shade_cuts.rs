@@ -35,20 +35,21 @@ const HORIZON: f32 = 1e-3;
 /// The cuts renderer over one whole-mesh bake.
 pub struct CutsShader<'a> {
     mesh: &'a TriMesh,
-    materials: &'a [Material],
+    materials: Vec<Material>,
     bake: &'a CutsBake,
     function: CutFunction,
 }
 
 impl<'a> CutsShader<'a> {
-    /// A renderer of `bake` (one cut per vertex of `mesh`) with the scene's `materials`
-    /// (indexed by `mesh.material_ids`), whose cuts approximate `function`.
+    /// A renderer of `bake` (one cut per vertex of `mesh`) with `materials` (indexed by
+    /// `mesh.material_ids`; any materials: nothing of them is baked), whose cuts approximate
+    /// `function`.
     ///
     /// # Panics
     /// If the bake does not hold one cut per vertex.
     pub fn new(
         mesh: &'a TriMesh,
-        materials: &'a [Material],
+        materials: Vec<Material>,
         bake: &'a CutsBake,
         function: CutFunction,
     ) -> Self {
@@ -146,7 +147,7 @@ mod tests {
             .collect();
         let light = LightCut::build(&bake.tree, &power, 2.0, 512).unwrap();
         let materials = [material];
-        let shader = CutsShader::new(&mesh, &materials, &bake, function);
+        let shader = CutsShader::new(&mesh, materials.to_vec(), &bake, function);
         let camera = Camera {
             origin: [0.0, 2.0, 2.0],
             target: [0.0, 0.0, 0.0],

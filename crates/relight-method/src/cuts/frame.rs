@@ -9,6 +9,7 @@ use relight_bake::cuts::samples::sample_radiance;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
 use relight_scene::camera::Camera;
+use relight_scene::material::Material;
 use relight_scene::scene::Environment;
 use std::time::Instant;
 
@@ -26,14 +27,46 @@ pub struct CutsFrameSettings {
     /// `sigma` of the illumination cut's error phase, in units of the mean light (>= 0).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_LIGHT_SIGMA))]
     pub light_sigma: f32,
+    /// Render every surface with this material instead of the scene's (nothing of the
+    /// materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
+    /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = parse_material))]
+    pub material: Option<Material>,
+}
+
+/// A material from inline JSON (starting with `{`) or the path of a `.json` file holding
+/// one (a regular file of at most 64 MiB), validated.
+///
+/// # Errors
+/// A message naming the file or the JSON and the problem.
+pub fn parse_material(text: &str) -> Result<Material, String> {
+    let (json, origin) = if text.trim_start().starts_with('{') {
+        (text.to_string(), "the material".to_string())
+    } else {
+        let bytes = relight_scene::io::files::read_file(
+            std::path::Path::new(text),
+            relight_scene::io::files::MAX_TEXT_BYTES,
+            "material file",
+        )
+        .map_err(|e| format!("not inline JSON, and {e}"))?;
+        (
+            String::from_utf8_lossy(&bytes).into_owned(),
+            text.to_string(),
+        )
+    };
+    let m: Material =
+        serde_json::from_str(&json).map_err(|e| format!("{origin}: not a valid material: {e}"))?;
+    m.validate().map_err(|e| format!("{origin}: {e}"))?;
+    Ok(m)
 }
 
 impl Default for CutsFrameSettings {
-    /// 256 nodes, sigma 2.
+    /// 256 nodes, sigma 2, the scene's materials.
     fn default() -> Self {
         CutsFrameSettings {
             light_cut: 256,
             light_sigma: DEFAULT_LIGHT_SIGMA,
+            material: None,
         }
     }
 }
@@ -50,8 +83,17 @@ impl<'a> CutsFrame<'a> {
     /// A frame over `baked` (a whole bake).
     ///
     /// # Errors
-    /// [`MethodError::Settings`] for a light cut of 0 nodes or a bad sigma.
+    /// [`MethodError::Settings`] for a light cut of 0 nodes, a bad sigma or an invalid
+    /// material.
     pub fn new(baked: &'a CutsBaked, s: &CutsFrameSettings) -> Result<Self, MethodError> {
+        if let Some(m) = &s.material {
+            m.validate()
+                .map_err(|e| MethodError::Settings(format!("material {m:?}: {e}")))?;
+        }
+        let materials = match s.material {
+            Some(m) => vec![m; baked.scene.materials.len()],
+            None => baked.scene.materials.clone(),
+        };
         if s.light_cut == 0 || !(s.light_sigma.is_finite() && s.light_sigma >= 0.0) {
             return Err(MethodError::Settings(format!(
                 "light cut of {} nodes with sigma {} (need >= 1 node and sigma >= 0)",
@@ -62,7 +104,7 @@ impl<'a> CutsFrame<'a> {
             baked,
             shader: CutsShader::new(
                 &baked.scene.mesh,
-                &baked.scene.materials,
+                materials,
                 &baked.bake,
                 baked.settings.function,
             ),
