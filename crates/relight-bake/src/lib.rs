@@ -5,6 +5,8 @@
 //!   range for sharded bakes.
 //! * [`sg`]: view-dependent glossy PRT with spherical Gaussians (Green 2005): per-vertex,
 //!   per-view transport fitted by a flood fill with coherence terms.
+//! * [`cuts`]: precomputed visibility cuts (Cheslack-Postava et al. 2008): light samples, light
+//!   tree, per-vertex visibility cuts, merging of cuts, illumination cuts.
 //! * [`transport`]: what every baker shares: per-vertex albedo and geometric normals,
 //!   per-vertex low-discrepancy hemisphere samples, ray offsets, thread pools.
 //!
@@ -21,6 +23,7 @@
 //! # Ok(()) }
 //! ```
 
+pub mod cuts;
 pub mod sg;
 pub mod sh;
 pub mod transport;
@@ -42,6 +45,9 @@ pub enum BakeError {
         /// Physical memory, MiB.
         available_mib: u64,
     },
+    /// The cuts method refused its input (environment, lights, sizes).
+    #[error(transparent)]
+    Cuts(#[from] cuts::CutsError),
     /// The worker thread pool could not be created.
     #[error("could not start {threads} bake threads: {message}")]
     Threads {

@@ -3,8 +3,10 @@
 use crate::args::{self, arg_names, given, refuse_foreign, Out};
 use anyhow::{bail, Context, Result};
 use clap::ArgMatches;
+use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_method::cuts::Cuts;
 use relight_method::memory::MemoryPlan;
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
@@ -77,6 +79,9 @@ pub struct Args {
     /// SG material blend.
     #[command(flatten)]
     pub blend: BlendArgs,
+    /// Cuts options.
+    #[command(flatten)]
+    pub cuts: CutsBakeSettings,
 }
 
 /// `relight bake --method sg`'s spatially varying material (thesis 2.3.1).
@@ -120,6 +125,7 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
                 arg_names::<ShBakeSettings>(),
             ),
             (&[MethodKind::Sg], sg),
+            (&[MethodKind::Cuts], arg_names::<CutsBakeSettings>()),
         ],
     )?;
     if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
@@ -222,6 +228,18 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 q = b.indirect_res,
             );
             bake_with::<Sg>(input, &s, &a, &ctx)?
+        }
+        relight_method::BakeKind::Cuts => {
+            let s = CutsBakeSettings {
+                seed: a.seed,
+                ..a.cuts
+            };
+            Cuts::validate(&s)?;
+            eprintln!(
+                "{what}: cuts, {} lights, {:?} light tree, sigma {}, cap {}",
+                s.lights, s.tree, s.sigma, s.max_cut
+            );
+            bake_with::<Cuts>(input, &s, &a, &ctx)?
         }
     };
     report(&a.out, &baked, out);

@@ -46,18 +46,26 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     let methods: Vec<&str> = baked.kind().methods().iter().map(|m| m.name()).collect();
     out.line(format!("  renders with --method {}", methods.join(", ")));
     let mut sg_json = json!(null);
-    if let Baked::Sg(sg) = &baked {
-        let (lines, j) = sg.describe();
+    let mut cuts_json = json!(null);
+    let described = match &baked {
+        Baked::Sg(sg) => Some(sg.describe()),
+        Baked::Cuts(cuts) => Some(cuts.describe()),
+        Baked::Sh(_) => None,
+    };
+    if let Some((lines, j)) = described {
         let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
         for l in lines {
             out.line(format!("  {l}"));
         }
-        let v = sg.scene.mesh.vertex_count().max(1);
+        let v = baked.scene().mesh.vertex_count().max(1);
         out.line(format!(
             "  all tensors: {} bytes per vertex",
             tensor_bytes / v
         ));
-        sg_json = j;
+        match &baked {
+            Baked::Cuts(_) => cuts_json = j,
+            _ => sg_json = j,
+        }
     }
     let tensors: serde_json::Map<String, serde_json::Value> = b
         .tensors
@@ -83,6 +91,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         "metadata": b.metadata,
         "tensors": tensors,
         "sg": sg_json,
+        "cuts": cuts_json,
     }));
     Ok(())
 }

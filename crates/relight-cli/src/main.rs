@@ -108,7 +108,7 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
-    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame.
+    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake.
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
 }

@@ -3,6 +3,7 @@
 use crate::args::{self, arg_names, refuse_foreign, EnvArgs, Out};
 use anyhow::{Context, Result};
 use clap::ArgMatches;
+use relight_method::cuts::CutsFrameSettings;
 use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgFrameSettings;
 use relight_method::sh::ShFrameSettings;
@@ -20,8 +21,8 @@ pub struct Args {
     /// checked before rendering and written together.
     #[arg(short, long, required = true)]
     pub out: Vec<PathBuf>,
-    /// Method (default: the bundle's: sh for an sh bake, sg for an sg bake; hybrid renders
-    /// sh bakes).
+    /// Method (default: the bundle's: sh for an sh bake, sg for an sg bake, cuts for a cuts
+    /// bake; hybrid renders sh bakes).
     #[arg(long, value_enum)]
     pub method: Option<MethodKind>,
     #[command(flatten)]
@@ -57,6 +58,9 @@ pub struct Args {
     /// SG options.
     #[command(flatten)]
     pub sg: SgFrameSettings,
+    /// Cuts options.
+    #[command(flatten)]
+    pub cuts: CutsFrameSettings,
 }
 
 /// The frame settings of `method` from the options.
@@ -71,6 +75,7 @@ fn frame_settings(a: &Args, method: MethodKind) -> Result<FrameSettings> {
             ..a.hybrid
         }),
         MethodKind::Sg => FrameSettings::Sg(a.sg),
+        MethodKind::Cuts => FrameSettings::Cuts(a.cuts),
     })
 }
 
@@ -93,6 +98,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             ),
             (&[MethodKind::Hybrid], arg_names::<HybridSettings>()),
             (&[MethodKind::Sg], arg_names::<SgFrameSettings>()),
+            (&[MethodKind::Cuts], arg_names::<CutsFrameSettings>()),
         ],
     )?;
     let settings = frame_settings(&a, method)?;

@@ -23,11 +23,16 @@
 //!    glossy mesh (and of the armadillo), extrapolated to the armadillo's bake.
 //! 9. [`sg_frame`]: the SG frame (512 x 512, ~15K vertices) against the SH frame of the same
 //!    scene.
+//! 10. [`cuts_bake`]: cuts bake of the bunny (light samples, light tree, visibility cuts of a
+//!     block of vertices against casting the same rays), extrapolated to the whole mesh; the
+//!     illumination cut at the budgets 128, 256, 512; the per-pixel merge kernel; light-tree
+//!     variants.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
 //! repeated calls after a warm-up) and [`process_cpu_ms`] (CPU time of all threads, which a
 //! machine shared with other jobs does not inflate).
 
+pub mod cuts_bake;
 pub mod hybrid;
 pub mod prefilter;
 pub mod projection;
@@ -211,7 +216,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 10] = [
+pub const SECTIONS: [&str; 11] = [
     "rays",
     "sh-bake",
     "shard",
@@ -222,6 +227,7 @@ pub const SECTIONS: [&str; 10] = [
     "sg-fit",
     "sg-bake",
     "sg-frame",
+    "cuts-bake",
 ];
 
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
@@ -297,6 +303,11 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     }
     if on("sg-frame") {
         push(sg_frame::section(a.quick));
+    }
+    if on("cuts-bake") {
+        cuts_bake::sections(&a.bake_mesh, &a.data, a.quick)?
+            .into_iter()
+            .for_each(&mut push);
     }
     Ok(report)
 }

@@ -38,6 +38,7 @@
 //! ```
 
 pub mod checkpoint;
+pub mod cuts;
 mod error;
 pub mod hybrid;
 pub mod memory;
@@ -73,11 +74,19 @@ pub enum MethodKind {
     Hybrid,
     /// View-dependent glossy PRT with spherical Gaussians (Green 2005).
     Sg,
+    /// Precomputed visibility cuts merged per pixel with the illumination cut, materials
+    /// evaluated at render time (Cheslack-Postava et al. 2008).
+    Cuts,
 }
 
 impl MethodKind {
     /// Every method.
-    pub const ALL: [MethodKind; 3] = [MethodKind::Sh, MethodKind::Hybrid, MethodKind::Sg];
+    pub const ALL: [MethodKind; 4] = [
+        MethodKind::Sh,
+        MethodKind::Hybrid,
+        MethodKind::Sg,
+        MethodKind::Cuts,
+    ];
 
     /// The name on the command line.
     pub fn name(self) -> &'static str {
@@ -85,6 +94,7 @@ impl MethodKind {
             MethodKind::Sh => "sh",
             MethodKind::Hybrid => "hybrid",
             MethodKind::Sg => "sg",
+            MethodKind::Cuts => "cuts",
         }
     }
 
@@ -93,6 +103,7 @@ impl MethodKind {
         match self {
             MethodKind::Sh | MethodKind::Hybrid => BakeKind::Sh,
             MethodKind::Sg => BakeKind::Sg,
+            MethodKind::Cuts => BakeKind::Cuts,
         }
     }
 }
@@ -105,6 +116,9 @@ pub enum BakeKind {
     Sh,
     /// Per-vertex, per-view spherical Gaussians ([`sg::SgBaked`]), rendered by `sg`.
     Sg,
+    /// Light samples, light tree and per-vertex visibility cuts ([`cuts::CutsBaked`]),
+    /// rendered by `cuts`.
+    Cuts,
 }
 
 impl BakeKind {
@@ -113,6 +127,7 @@ impl BakeKind {
         match self {
             BakeKind::Sh => "sh",
             BakeKind::Sg => "sg",
+            BakeKind::Cuts => "cuts",
         }
     }
 
@@ -243,6 +258,8 @@ pub enum Baked {
     Sh(sh::ShBaked),
     /// An `sg` bake.
     Sg(sg::SgBaked),
+    /// A `cuts` bake.
+    Cuts(cuts::CutsBaked),
 }
 
 impl Baked {
@@ -251,6 +268,7 @@ impl Baked {
         match self {
             Baked::Sh(_) => BakeKind::Sh,
             Baked::Sg(_) => BakeKind::Sg,
+            Baked::Cuts(_) => BakeKind::Cuts,
         }
     }
 
@@ -259,6 +277,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &b.scene,
             Baked::Sg(b) => &b.scene,
+            Baked::Cuts(b) => &b.scene,
         }
     }
 
@@ -267,6 +286,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &b.record,
             Baked::Sg(b) => &b.record,
+            Baked::Cuts(b) => &b.record,
         }
     }
 
@@ -275,6 +295,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => &mut b.record,
             Baked::Sg(b) => &mut b.record,
+            Baked::Cuts(b) => &mut b.record,
         }
     }
 
@@ -283,6 +304,7 @@ impl Baked {
         let s = match self {
             Baked::Sh(b) => &mut b.scene,
             Baked::Sg(b) => &mut b.scene,
+            Baked::Cuts(b) => &mut b.scene,
         };
         BakedScene {
             desc: s.desc.clone(),
@@ -296,6 +318,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => b.scene = scene,
             Baked::Sg(b) => b.scene = scene,
+            Baked::Cuts(b) => b.scene = scene,
         }
     }
 
@@ -304,6 +327,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => serde_json::to_string(&b.settings),
             Baked::Sg(b) => serde_json::to_string(&b.settings),
+            Baked::Cuts(b) => serde_json::to_string(&b.settings),
         }
         .unwrap_or_default()
     }
@@ -316,6 +340,7 @@ impl Baked {
         match self {
             Baked::Sh(b) => sh::Sh::store(b),
             Baked::Sg(b) => sg::Sg::store(b),
+            Baked::Cuts(b) => cuts::Cuts::store(b),
         }
     }
 
@@ -346,6 +371,7 @@ impl Baked {
                 Ok(Box::new(hybrid::HybridFrame::new(b, s)?))
             }
             (Baked::Sg(b), FrameSettings::Sg(s)) => Ok(Box::new(sg::SgFrame::new(b, s)?)),
+            (Baked::Cuts(b), FrameSettings::Cuts(s)) => Ok(Box::new(cuts::CutsFrame::new(b, s)?)),
             _ => Err(MethodError::WrongBake {
                 path: path.to_path_buf(),
                 found: self.kind(),
@@ -396,6 +422,7 @@ impl BakeSummary {
             settings_json: b.settings_json(),
             describe: match b {
                 Baked::Sg(sg) => Some(sg.describe()),
+                Baked::Cuts(cuts) => Some(cuts.describe()),
                 Baked::Sh(_) => None,
             },
         }
@@ -411,6 +438,12 @@ impl From<sh::ShBaked> for Baked {
 impl From<sg::SgBaked> for Baked {
     fn from(b: sg::SgBaked) -> Self {
         Baked::Sg(b)
+    }
+}
+
+impl From<cuts::CutsBaked> for Baked {
+    fn from(b: cuts::CutsBaked) -> Self {
+        Baked::Cuts(b)
     }
 }
 
@@ -431,9 +464,10 @@ pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
     match method {
         "sh" => Ok(Baked::Sh(sh::Sh::load(b, path)?)),
         "sg" => Ok(Baked::Sg(sg::Sg::load(b, path)?)),
+        "cuts" => Ok(Baked::Cuts(cuts::Cuts::load(b, path)?)),
         m => Err(MethodError::invalid(
             path,
-            format!("unknown bake method '{m}' (this relight reads sh, sg)"),
+            format!("unknown bake method '{m}' (this relight reads sh, sg, cuts)"),
         )),
     }
 }
@@ -447,6 +481,8 @@ pub enum FrameSettings {
     Hybrid(hybrid::HybridSettings),
     /// `sg`.
     Sg(sg::SgFrameSettings),
+    /// `cuts`.
+    Cuts(cuts::CutsFrameSettings),
 }
 
 impl FrameSettings {
@@ -456,6 +492,7 @@ impl FrameSettings {
             FrameSettings::Sh(_) => MethodKind::Sh,
             FrameSettings::Hybrid(_) => MethodKind::Hybrid,
             FrameSettings::Sg(_) => MethodKind::Sg,
+            FrameSettings::Cuts(_) => MethodKind::Cuts,
         }
     }
 
@@ -465,6 +502,7 @@ impl FrameSettings {
             MethodKind::Sh => FrameSettings::Sh(Default::default()),
             MethodKind::Hybrid => FrameSettings::Hybrid(Default::default()),
             MethodKind::Sg => FrameSettings::Sg(Default::default()),
+            MethodKind::Cuts => FrameSettings::Cuts(Default::default()),
         }
     }
 }

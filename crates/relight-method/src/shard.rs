@@ -107,7 +107,7 @@ where
     if shard.count > most {
         let more = match M::KIND {
             crate::BakeKind::Sg => " (--regions raises their number)",
-            crate::BakeKind::Sh => "",
+            crate::BakeKind::Sh | crate::BakeKind::Cuts => "",
         };
         return Err(MethodError::Settings(format!(
             "--shard {}/{}: this {} bake splits into at most {most} parts, one per {}{more}",
@@ -186,7 +186,7 @@ where
             } = first;
             let rest = it.map(|b| match b {
                 Baked::Sg(b) => (b.bake, b.part),
-                Baked::Sh(_) => unreachable!("kinds checked above"),
+                Baked::Sh(_) | Baked::Cuts(_) => unreachable!("kinds checked above"),
             });
             let bake = merge_sg(
                 &settings.bake,
@@ -202,6 +202,15 @@ where
                 part: None,
             })
         }
+        Some(Baked::Cuts(mut cuts)) => {
+            for b in it {
+                let Baked::Cuts(p) = b else {
+                    unreachable!("kinds checked above")
+                };
+                append_cuts(&mut cuts, p).map_err(|m| err(&first_path, m))?;
+            }
+            Baked::Cuts(cuts)
+        }
         None => unreachable!("no part is missing"),
     };
     whole.put_scene(scene.expect("at least one part"));
@@ -210,6 +219,7 @@ where
     let valid = match &whole {
         Baked::Sh(sh) => sh.validate(),
         Baked::Sg(sg) => sg.validate(),
+        Baked::Cuts(cuts) => cuts.validate(),
     };
     valid.map_err(|e| err(&first_path, format!("merged bake: {e}")))?;
     Ok(whole)
@@ -468,6 +478,24 @@ fn append_sh(sh: &mut ShBaked, p: ShBaked) {
     t.data.extend_from_slice(&p.transfer.data);
     sh.albedo.extend_from_slice(&p.albedo);
     sh.record.seconds += p.record.seconds;
+}
+
+/// Append the cuts of part `p` to `c`: the parts must share their light samples and tree
+/// (the same settings and scene make the same ones).
+fn append_cuts(c: &mut crate::cuts::CutsBaked, p: crate::cuts::CutsBaked) -> Result<(), String> {
+    if p.bake.samples != c.bake.samples || p.bake.tree != c.bake.tree {
+        return Err("parts with different light samples or light trees".into());
+    }
+    let (dst, src) = (&mut c.bake.cuts, p.bake.cuts);
+    let (base_v, base_e) = (dst.vertex_count() as u32, dst.index.len() as u64);
+    dst.offsets
+        .extend(src.offsets.iter().skip(1).map(|&o| o + base_e));
+    dst.index.extend(src.index);
+    dst.leftleaf.extend(src.leftleaf);
+    dst.value.extend(src.value);
+    dst.capped.extend(src.capped.iter().map(|&v| v + base_v));
+    c.record.seconds += p.record.seconds;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ pub mod mitsuba;
 pub mod pathtrace;
 pub mod plot;
 pub mod raster;
+pub mod shade_cuts;
 pub mod shade_sg;
 pub mod shade_sh;
 pub mod shadowmap;

@@ -1,0 +1,185 @@
+//! End-to-end tests of the `cuts` method in the `relight` binary: bake, info, render, a
+//! sharded bake merged byte for byte, bad settings and foreign options refused.
+
+use std::path::{Path, PathBuf};
+mod common;
+use common::{assert_clean_failure, relight, stderr, stdout, tmpdir};
+
+/// A white-ish Lambertian sphere alone under a constant environment of radiance 1: convex,
+/// so every point sees the whole upper hemisphere and reflects exactly its albedo.
+fn scene(dir: &Path) -> PathBuf {
+    let p = dir.join("sphere.json");
+    std::fs::write(
+        &p,
+        r#"{
+  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "rings": 12,
+              "material": {"type": "lambert", "albedo": [0.5, 0.4, 0.3]}}],
+  "environment": {"type": "constant", "radiance": [1, 1, 1]},
+  "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+             "fov_deg": 40, "width": 24, "height": 18}
+}"#,
+    )
+    .unwrap();
+    p
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn bake(scene: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut a = vec![
+        "bake",
+        s(scene),
+        "-o",
+        s(out),
+        "--method",
+        "cuts",
+        "--cut-lights",
+        "2048",
+        "--seed",
+        "4",
+    ];
+    a.extend_from_slice(extra);
+    relight(&a)
+}
+
+#[test]
+fn bake_info_render_a_convex_lambert_sphere() {
+    let dir = tmpdir("cuts", "render");
+    let (sc, b) = (scene(&dir), dir.join("s.relight"));
+    let o = bake(&sc, &b, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relight(&["info", s(&b)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("renders with --method cuts"),
+        "{}",
+        stdout(&o)
+    );
+    let img = dir.join("s.exr");
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&img),
+        "--light-cut",
+        "128",
+        "--supersample",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (w, h, px) = relight_scene::io::image::read_image(&img).unwrap();
+    assert_eq!((w, h), (24, 18));
+    // Pixels well inside the disc: the albedo, within the cut approximation (cosine cut
+    // means times light cluster means, 16-bit quantisation) and the faceted sphere's
+    // interpolated normals: 2%.
+    let (cx, cy) = (12.0, 9.0);
+    let mut inside = 0;
+    for (k, p) in px.iter().enumerate() {
+        let (x, y) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
+        if (x - cx).hypot(y - cy) < 4.0 {
+            inside += 1;
+            for (c, a) in p.to_array().iter().zip([0.5f32, 0.4, 0.3]) {
+                assert!((c - a).abs() < 0.02 * a, "pixel {k}: {p}");
+            }
+        }
+    }
+    assert!(inside > 20);
+    // Materials are not baked: another one at render time, inline or from a file.
+    let mat = dir.join("white.json");
+    std::fs::write(&mat, r#"{"type": "lambert", "albedo": [0.9, 0.9, 0.9]}"#).unwrap();
+    for m in [s(&mat), r#"{"type": "lambert", "albedo": [0.9, 0.9, 0.9]}"#] {
+        let o = relight(&[
+            "render",
+            s(&b),
+            "-o",
+            s(&img),
+            "--light-cut",
+            "128",
+            "--supersample",
+            "1",
+            "--material",
+            m,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (_, _, px) = relight_scene::io::image::read_image(&img).unwrap();
+        let centre = px[9 * w + 12];
+        // As above: 2%.
+        assert!(
+            (centre - glam::Vec3::splat(0.9)).abs().max_element() < 0.02 * 0.9,
+            "{centre}"
+        );
+    }
+    let bad = dir.join("bad.exr");
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&bad),
+        "--material",
+        r#"{"type": "lambert", "albedo": [2, 0, 0]}"#,
+    ]);
+    assert_clean_failure(&o, "material", &bad);
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&bad),
+        "--material",
+        "/nonexistent/m.json",
+    ]);
+    assert_clean_failure(&o, "m.json", &bad);
+}
+
+#[test]
+fn a_sharded_bake_merges_to_the_same_bytes() {
+    let dir = tmpdir("cuts", "shard");
+    let sc = scene(&dir);
+    let whole = dir.join("whole.relight");
+    assert!(bake(&sc, &whole, &[]).status.success());
+    let parts: Vec<PathBuf> = (0..3).map(|i| dir.join(format!("p{i}.relight"))).collect();
+    for (i, p) in parts.iter().enumerate() {
+        let shard = format!("{i}/3");
+        let o = bake(&sc, p, &["--shard", &shard]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let merged = dir.join("merged.relight");
+    let o = relight(&[
+        "merge",
+        s(&parts[2]),
+        s(&parts[0]),
+        s(&parts[1]),
+        "-o",
+        s(&merged),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&merged).unwrap(),
+        std::fs::read(&whole).unwrap()
+    );
+    // A part renders nothing until merged.
+    let img = dir.join("part.exr");
+    let o = relight(&["render", s(&parts[0]), "-o", s(&img)]);
+    assert_clean_failure(&o, "merge the parts", &img);
+}
+
+#[test]
+fn bad_settings_and_foreign_options_are_refused() {
+    let dir = tmpdir("cuts", "bad");
+    let sc = scene(&dir);
+    let b = dir.join("bad.relight");
+    assert_clean_failure(&bake(&sc, &b, &["--cut-sigma=-1"]), "sigma", &b);
+    assert_clean_failure(&bake(&sc, &b, &["--cut-lights", "1"]), "lights", &b);
+    assert_clean_failure(&bake(&sc, &b, &["--cut-beta", "2"]), "beta", &b);
+    assert_clean_failure(&bake(&sc, &b, &["--direct-res", "8"]), "direct-res", &b);
+    let good = dir.join("good.relight");
+    assert!(bake(&sc, &good, &[]).status.success());
+    let img = dir.join("x.exr");
+    let o = relight(&["render", s(&good), "-o", s(&img), "--light-cut", "0"]);
+    assert_clean_failure(&o, "light cut", &img);
+    let o = relight(&["render", s(&good), "-o", s(&img), "--prefilter-size", "64"]);
+    assert_clean_failure(&o, "prefilter-size", &img);
+    let o = relight(&["render", s(&good), "-o", s(&img), "--method", "sh"]);
+    assert_clean_failure(&o, "cuts", &img);
+}

@@ -1,0 +1,181 @@
+//! The `cuts` frame: the environment's light samples and illumination cut (once per map or
+//! rotation), then per camera the per-pixel merge of `relight_render::shade_cuts`.
+
+use super::CutsBaked;
+use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
+use glam::Vec3;
+use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA};
+use relight_bake::cuts::samples::sample_radiance;
+use relight_render::raster::RasterOptions;
+use relight_render::shade_cuts::CutsShader;
+use relight_scene::camera::Camera;
+use relight_scene::material::Material;
+use relight_scene::scene::Environment;
+use std::time::Instant;
+
+/// Settings of the `cuts` frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(
+    feature = "cli",
+    command(next_help_heading = "Cuts render (--method cuts)")
+)]
+pub struct CutsFrameSettings {
+    /// Nodes of the illumination cut (the paper's budgets: 128, 256, 512), at least 1.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = CutsFrameSettings::default().light_cut))]
+    pub light_cut: usize,
+    /// `sigma` of the illumination cut's error phase, in units of the mean light (>= 0).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_LIGHT_SIGMA))]
+    pub light_sigma: f32,
+    /// Render every surface with this material instead of the scene's (nothing of the
+    /// materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
+    /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = parse_material))]
+    pub material: Option<Material>,
+}
+
+/// A material from inline JSON (starting with `{`) or the path of a `.json` file holding
+/// one (a regular file of at most 64 MiB), validated.
+///
+/// # Errors
+/// A message naming the file or the JSON and the problem.
+pub fn parse_material(text: &str) -> Result<Material, String> {
+    let (json, origin) = if text.trim_start().starts_with('{') {
+        (text.to_string(), "the material".to_string())
+    } else {
+        let bytes = relight_scene::io::files::read_file(
+            std::path::Path::new(text),
+            relight_scene::io::files::MAX_TEXT_BYTES,
+            "material file",
+        )
+        .map_err(|e| format!("not inline JSON, and {e}"))?;
+        (
+            String::from_utf8_lossy(&bytes).into_owned(),
+            text.to_string(),
+        )
+    };
+    let m: Material =
+        serde_json::from_str(&json).map_err(|e| format!("{origin}: not a valid material: {e}"))?;
+    m.validate().map_err(|e| format!("{origin}: {e}"))?;
+    Ok(m)
+}
+
+impl Default for CutsFrameSettings {
+    /// 256 nodes, sigma 2, the scene's materials.
+    fn default() -> Self {
+        CutsFrameSettings {
+            light_cut: 256,
+            light_sigma: DEFAULT_LIGHT_SIGMA,
+            material: None,
+        }
+    }
+}
+
+/// The `cuts` frame over a bake.
+pub struct CutsFrame<'a> {
+    baked: &'a CutsBaked,
+    shader: CutsShader<'a>,
+    settings: CutsFrameSettings,
+    lighting: Option<(LightCut, Environment)>,
+}
+
+impl<'a> CutsFrame<'a> {
+    /// A frame over `baked` (a whole bake).
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`] for a light cut of 0 nodes, a bad sigma or an invalid
+    /// material.
+    pub fn new(baked: &'a CutsBaked, s: &CutsFrameSettings) -> Result<Self, MethodError> {
+        if let Some(m) = &s.material {
+            m.validate()
+                .map_err(|e| MethodError::Settings(format!("material {m:?}: {e}")))?;
+        }
+        let materials = match s.material {
+            Some(m) => vec![m; baked.scene.materials.len()],
+            None => baked.scene.materials.clone(),
+        };
+        if s.light_cut == 0 || !(s.light_sigma.is_finite() && s.light_sigma >= 0.0) {
+            return Err(MethodError::Settings(format!(
+                "light cut of {} nodes with sigma {} (need >= 1 node and sigma >= 0)",
+                s.light_cut, s.light_sigma
+            )));
+        }
+        Ok(CutsFrame {
+            baked,
+            shader: CutsShader::new(
+                &baked.scene.mesh,
+                materials,
+                &baked.bake,
+                baked.settings.function,
+            ),
+            settings: *s,
+            lighting: None,
+        })
+    }
+}
+
+impl Frame for CutsFrame<'_> {
+    fn method(&self) -> MethodKind {
+        MethodKind::Cuts
+    }
+
+    fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError> {
+        let t0 = Instant::now();
+        let samples = &self.baked.bake.samples;
+        let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
+        let radiance = sample_radiance(samples, env).map_err(bad)?;
+        let environment_ms = ms_since(t0);
+        let t1 = Instant::now();
+        let power: Vec<Vec3> = radiance
+            .iter()
+            .zip(&samples.solid_angles)
+            .map(|(&l, &w)| l * w)
+            .collect();
+        let light = LightCut::build(
+            &self.baked.bake.tree,
+            &power,
+            self.settings.light_sigma,
+            self.settings.light_cut,
+        )
+        .map_err(bad)?;
+        self.lighting = Some((light, env.clone()));
+        Ok(PrepareTimes {
+            environment_ms,
+            shade_ms: ms_since(t1),
+        })
+    }
+
+    fn render(&self, camera: &Camera, opts: &FrameOptions) -> FrameOutput {
+        let (light, env) = self
+            .lighting
+            .as_ref()
+            .expect("set_environment before render");
+        let t0 = Instant::now();
+        let img = self.shader.render(
+            light,
+            camera,
+            opts.background.then_some(env),
+            &RasterOptions {
+                supersample: opts.supersample,
+            },
+        );
+        FrameOutput::rasterised_since(img.image, t0)
+    }
+
+    fn summary(&self) -> String {
+        let c = &self.baked.bake.cuts;
+        let light = self.lighting.as_ref().map_or(String::new(), |(l, _)| {
+            format!(
+                ", light cut {} nodes (error bound {})",
+                l.len(),
+                if l.error_bound_met { "met" } else { "not met" }
+            )
+        });
+        format!(
+            "cuts: {} vertices, {} lights, mean visibility cut {:.1} nodes{light}",
+            self.baked.scene.mesh.vertex_count(),
+            self.baked.settings.lights,
+            c.mean_len()
+        )
+    }
+}

@@ -1,0 +1,212 @@
+//! Round trips of `cuts` bundles (f32 exact, f16 within half precision, a part's range) and
+//! corruptions refused by name.
+
+use super::*;
+use crate::test_scene::with_input;
+use crate::MethodError;
+use relight_bake::cuts::bake_range;
+use relight_bundle::{Bundle, DType, Tensor};
+use relight_scene::accel::{build, Backend};
+use std::path::Path;
+
+/// A small real bake of the test scene (512 lights), of `range` (all vertices: `None`).
+fn baked(f16: bool, range: Option<std::ops::Range<usize>>) -> CutsBaked {
+    with_input(0.5, |input| {
+        let caster = build(&input.scene.mesh, Backend::Bvh).unwrap();
+        let settings = CutsBakeSettings {
+            lights: 512,
+            seed: 2,
+            ..Default::default()
+        };
+        let n = input.scene.mesh.vertex_count();
+        let range = range.unwrap_or(0..n);
+        let bake =
+            bake_range(&input.scene.mesh, caster.as_ref(), &settings, range.clone()).unwrap();
+        CutsBaked {
+            scene: BakedScene::of(&input),
+            bake,
+            settings,
+            record: BakeRecord::new("bvh", 0.0, f16, &range, n),
+        }
+    })
+}
+
+fn round_trip(b: &CutsBaked) -> Result<CutsBaked, MethodError> {
+    let bytes = store(b)?.to_bytes();
+    load(
+        &Bundle::from_bytes(Path::new("x.relight"), &bytes)?,
+        Path::new("x.relight"),
+    )
+}
+
+#[test]
+fn f32_round_trip_is_exact() {
+    let b = baked(false, None);
+    b.validate().unwrap();
+    assert!(b.bake.cuts.mean_len() > 1.0);
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.bake, b.bake);
+    assert_eq!(back.settings, b.settings);
+    assert_eq!(back.record, b.record);
+    assert_eq!(back.scene.mesh.positions, b.scene.mesh.positions);
+    assert_eq!(back.scene.mesh.indices, b.scene.mesh.indices);
+}
+
+#[test]
+fn f16_round_trip_within_half_precision() {
+    let b = baked(true, None);
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.bake.tree, b.bake.tree);
+    assert_eq!(back.bake.cuts, b.bake.cuts);
+    assert_eq!(back.bake.samples.dirs, b.bake.samples.dirs);
+    for (x, y) in back
+        .bake
+        .samples
+        .solid_angles
+        .iter()
+        .zip(&b.bake.samples.solid_angles)
+    {
+        // f16 has an 11-bit significand: relative rounding at most 2^-11.
+        assert!((x - y).abs() <= y * 2f32.powi(-11), "{x} vs {y}");
+    }
+}
+
+#[test]
+fn a_part_keeps_its_range() {
+    let b = baked(false, Some(5..20));
+    assert_eq!(b.vertex_range(), 5..20);
+    b.validate().unwrap();
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.vertex_range(), 5..20);
+    assert_eq!(back.bake, b.bake);
+}
+
+/// Store `b`, change the bundle with `f`, load: the error message.
+fn corrupt(b: &CutsBaked, f: impl FnOnce(&mut Bundle)) -> String {
+    let mut bundle = store(b).unwrap();
+    f(&mut bundle);
+    let bytes = bundle.to_bytes();
+    let bundle = Bundle::from_bytes(Path::new("x.relight"), &bytes).unwrap();
+    load(&bundle, Path::new("x.relight"))
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+fn corruptions_are_refused_by_name() {
+    let b = baked(false, None);
+    let e = b.bake.cuts.index.len();
+    let nodes = b.bake.tree.nodes().len() as u32;
+    let u32s = |v: &[u32]| Tensor::from_u32(vec![v.len()], v);
+    let msg = corrupt(&b, |x| {
+        let mut idx = b.bake.cuts.index.clone();
+        idx[e / 2] = nodes;
+        x.insert("cuts_index", u32s(&idx));
+    });
+    assert!(
+        msg.contains("cuts_index") && msg.contains("outside the tree"),
+        "{msg}"
+    );
+    let msg = corrupt(&b, |x| {
+        let mut order = b.bake.tree.lights_in_order();
+        order[3] = order[4];
+        x.insert("cuts_leaf_order", u32s(&order));
+    });
+    assert!(msg.contains("cuts_leaf_order"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        x.insert("cuts_value", Tensor::from_u32(vec![e, 2], &vec![0; 2 * e]));
+    });
+    assert!(msg.contains("cuts_value") && msg.contains("U8"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        let mut off: Vec<u32> = b.bake.cuts.offsets.iter().map(|&o| o as u32).collect();
+        off.swap(1, 2);
+        x.insert("cuts_offsets", u32s(&off));
+    });
+    assert!(msg.contains("offsets"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        // Swapping two entries of a cut breaks its order (or its tiling).
+        let mut idx = b.bake.cuts.index.clone();
+        let v = (0..b.bake.cuts.vertex_count())
+            .find(|&v| b.bake.cuts.cut(v).index.len() >= 2)
+            .unwrap();
+        let o = b.bake.cuts.offsets[v] as usize;
+        idx.swap(o, o + 1);
+        x.insert("cuts_index", u32s(&idx));
+    });
+    assert!(msg.contains("vertex"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        let mut w = b.bake.samples.solid_angles.clone();
+        w[7] = -w[7];
+        x.insert("cuts_solid_angles", Tensor::from_f32(vec![w.len()], &w));
+    });
+    assert!(msg.contains("solid angle"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        let mut w = b.bake.samples.solid_angles.clone();
+        w[7] *= 3.0;
+        x.insert("cuts_solid_angles", Tensor::from_f32(vec![w.len()], &w));
+    });
+    assert!(msg.contains("4 pi"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        x.tensors.remove("cuts_capped");
+    });
+    assert!(msg.contains("cuts_capped"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        x.metadata.insert("method".into(), "sh".into());
+    });
+    assert!(msg.contains("'sh'"), "{msg}");
+    let msg = corrupt(&b, |x| {
+        let t = x.tensors.get_mut("cuts_dirs").unwrap();
+        t.dtype = DType::U32;
+    });
+    assert!(msg.contains("cuts_dirs"), "{msg}");
+}
+
+#[test]
+fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
+    use crate::{Baked, FrameOptions, FrameSettings, MethodKind};
+    // The test scene's sphere sits on a plane; a lone sphere is convex: its cuts see the
+    // whole upper hemisphere of every vertex.
+    let b = baked(false, None);
+    let whole: Baked = b.into();
+    assert_eq!(whole.kind(), crate::BakeKind::Cuts);
+    let mut frame = whole
+        .frame(&FrameSettings::default_for(MethodKind::Cuts))
+        .unwrap();
+    assert_eq!(frame.method(), MethodKind::Cuts);
+    let env =
+        relight_scene::scene::Environment::new(relight_sphere::EnvMap::constant(glam::Vec3::ONE));
+    frame.set_environment(&env).unwrap();
+    let camera = whole.scene().desc.camera;
+    let out = frame.render(&camera, &FrameOptions::default());
+    assert_eq!(out.image.width, camera.width as usize);
+    assert!(out
+        .image
+        .pixels
+        .iter()
+        .all(|p| p.is_finite() && p.min_element() >= 0.0));
+    // Lit pixels exist and none exceeds the brightest albedo (0.8) by more than the cut
+    // approximation (2%).
+    let max = out
+        .image
+        .pixels
+        .iter()
+        .map(|p| p.max_element())
+        .fold(0.0, f32::max);
+    assert!(max > 0.1 && max < 0.8 * 1.02, "{max}");
+    assert!(
+        frame.summary().contains("light cut 256 nodes"),
+        "{}",
+        frame.summary()
+    );
+    // A part cannot be rendered.
+    let part: Baked = baked(false, Some(0..10)).into();
+    assert!(part
+        .frame(&FrameSettings::default_for(MethodKind::Cuts))
+        .is_err());
+    // Zero light-cut nodes are refused.
+    let bad = FrameSettings::Cuts(CutsFrameSettings {
+        light_cut: 0,
+        ..Default::default()
+    });
+    assert!(whole.frame(&bad).is_err());
+}
