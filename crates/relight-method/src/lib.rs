@@ -75,7 +75,8 @@ pub enum MethodKind {
     /// View-dependent glossy PRT with spherical Gaussians (Green 2005).
     Sg,
     /// Precomputed visibility cuts merged per pixel with the illumination cut, materials
-    /// evaluated at render time (Cheslack-Postava et al. 2008).
+    /// evaluated at render time (Cheslack-Postava et al. 2008). A preview: environment light
+    /// only, no textures or local lights yet, and not yet checked against Mitsuba (issue 11).
     Cuts,
 }
 
