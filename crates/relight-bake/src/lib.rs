@@ -24,6 +24,7 @@
 pub mod sg;
 pub mod sh;
 pub mod transport;
+pub mod vmf;
 
 /// Why a bake could not run: invalid settings or an inconsistent mesh.
 #[derive(Debug, thiserror::Error)]
