@@ -26,9 +26,13 @@
 //!   at `x` apart (the paper's `T_d` and `T_g`, eq. 3).
 //!
 //! Modules: [`material_lobes`] (eq. 9, the sampling density), [`slice`] (eq. 13-15, a transfer
-//! slice from traced paths).
+//! slice from traced paths), [`bake`] (slices of every vertex for a fixed level of views; the
+//! adaptive angular and spatial refinement of section 4 is not implemented yet).
 
+pub mod bake;
 pub mod material_lobes;
 pub mod slice;
 
+pub use bake::{bake, InvalidVmfBake, VmfBake, VmfBakeSettings};
 pub use material_lobes::{MaterialLobes, Term};
+pub use slice::{PathClass, SliceSettings, TransferSlice};

@@ -282,12 +282,12 @@ pub fn trace_slice(
         let mut bounces = 0;
         loop {
             let Some(hit) = scene.caster.intersect(&ray) else {
-                for t in 0..2 {
+                for (classes, &w) in out.classes.iter_mut().zip(&wx) {
                     if bounces == 0 {
-                        push(&mut out.classes[t][0], ray.dir, wx[t]);
+                        push(&mut classes[0], ray.dir, w);
                     } else {
-                        push(&mut out.classes[t][1], ray.dir, wx[t] * wh[0] * rest);
-                        push(&mut out.classes[t][2], ray.dir, wx[t] * wh[1] * rest);
+                        push(&mut classes[1], ray.dir, w * wh[0] * rest);
+                        push(&mut classes[2], ray.dir, w * wh[1] * rest);
                     }
                 }
                 break;

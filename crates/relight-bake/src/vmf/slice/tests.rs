@@ -324,7 +324,7 @@ fn slice_lobes_render_like_the_path_tracer() {
         vertex_materials: &mats,
     };
     let settings = SliceSettings {
-        paths: 16384,
+        paths: 8192,
         max_bounces: 2,
         ..Default::default()
     };
@@ -343,7 +343,7 @@ fn slice_lobes_render_like_the_path_tracer() {
         let v = frame.to_local(world_view.normalize());
         let samples = trace_slice(&sc, &p, v, &settings, 4, 1);
         let slice = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
-        let (reference, ref_err) = path_traced(&sc, &p, v, &env, 2, 100_000);
+        let (reference, ref_err) = path_traced(&sc, &p, v, &env, 2, 50_000);
         let (mc, mc_err) = samples_render(&samples, &env);
         let err = (ref_err * ref_err + mc_err * mc_err).sqrt();
         assert!(
