@@ -182,7 +182,7 @@ impl VmfBake {
                 self.settings.view_level
             ));
         }
-        if self.views.is_empty() || self.slices.len() % self.views.len() != 0 {
+        if self.views.is_empty() || !self.slices.len().is_multiple_of(self.views.len()) {
             return err(format!(
                 "{} slices for {} views",
                 self.slices.len(),
