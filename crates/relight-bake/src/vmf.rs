@@ -25,8 +25,8 @@
 //!   ([`material_lobes`]); a slice keeps the transfer through `f_d` at `x` and through `f_g`
 //!   at `x` apart (the paper's `T_d` and `T_g`, eq. 3).
 //!
-//! Modules: [`material_lobes`] (eq. 9, the sampling density), [`slice`] (eq. 13-15, a transfer
-//! slice from traced paths), [`bake`] (slices of every vertex for a fixed level of views; the
+//! Modules: [`material_lobes`] (eq. 9, the sampling density), [`mod@slice`] (eq. 13-15, a transfer
+//! slice from traced paths), [`mod@bake`] (slices of every vertex for a fixed level of views; the
 //! adaptive angular and spatial refinement of section 4 is not implemented yet).
 
 pub mod bake;
