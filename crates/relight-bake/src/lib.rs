@@ -5,6 +5,9 @@
 //!   range for sharded bakes.
 //! * [`sg`]: view-dependent glossy PRT with spherical Gaussians (Green 2005): per-vertex,
 //!   per-view transport fitted by a flood fill with coherence terms.
+//! * [`vmf`]: view-dependent glossy PRT with von Mises-Fisher lobes (Laurijssen & Dutré
+//!   2009): per-vertex, per-view transfer slices, one lobe per light-path class (bake layer
+//!   only; no adaptive refinement yet).
 //! * [`transport`]: what every baker shares: per-vertex albedo and geometric normals,
 //!   per-vertex low-discrepancy hemisphere samples, ray offsets, thread pools.
 //!
