@@ -33,6 +33,6 @@ pub mod bake;
 pub mod material_lobes;
 pub mod slice;
 
-pub use bake::{bake, InvalidVmfBake, VmfBake, VmfBakeSettings};
+pub use bake::{bake, bake_vertices, InvalidVmfBake, VmfBake, VmfBakeSettings};
 pub use material_lobes::{MaterialLobes, Term};
 pub use slice::{PathClass, SliceSettings, TransferSlice};

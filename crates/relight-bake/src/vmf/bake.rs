@@ -15,7 +15,8 @@
 //! bake depends on the seed, never on the threads. A vertex's point is its position, its
 //! normalised shading normal, its area-weighted geometric normal
 //! ([`crate::transport::vertex_geometric_normals`]) and its material
-//! ([`crate::sg::transport::vertex_materials`] unless given per vertex).
+//! ([`crate::sg::transport::vertex_materials`] unless given per vertex). A part of the
+//! vertices ([`bake_vertices`]) is therefore exactly that part of the whole bake (sharding).
 
 use super::slice::{
     trace_slice, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
@@ -33,6 +34,7 @@ use relight_scene::mesh::TriMesh;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::vmf::KappaEstimate;
 use serde::{Deserialize, Serialize};
+use std::ops::Range;
 
 /// Largest icosahedral level of the views (the paper's maximum, section 6.1).
 pub const MAX_VIEW_LEVEL: u32 = 5;
@@ -234,7 +236,42 @@ pub fn bake(
     caster: &dyn RayCaster,
     settings: &VmfBakeSettings,
 ) -> Result<VmfBake, BakeError> {
+    let slices = bake_vertices(
+        mesh,
+        materials,
+        vertex_materials,
+        caster,
+        settings,
+        0..mesh.vertex_count(),
+    )?;
+    Ok(VmfBake {
+        settings: *settings,
+        views: settings.views(),
+        slices,
+    })
+}
+
+/// The slices of the vertices `vertices` only (vertex-major, `vertices.len() * views`), as
+/// [`bake`] computes them: each vertex is seeded by its index in the whole mesh, so the parts
+/// of a sharded bake concatenate to the whole bake exactly.
+///
+/// # Errors
+/// As [`bake`], and [`BakeError::Settings`] for a range outside the mesh.
+pub fn bake_vertices(
+    mesh: &TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &dyn RayCaster,
+    settings: &VmfBakeSettings,
+    vertices: Range<usize>,
+) -> Result<Vec<TransferSlice>, BakeError> {
     settings.validate()?;
+    if vertices.start > vertices.end || vertices.end > mesh.vertex_count() {
+        return Err(BakeError::Settings(format!(
+            "vertex range {vertices:?} is not within 0..{}",
+            mesh.vertex_count()
+        )));
+    }
     let per_vertex = match vertex_materials {
         Some(m) => {
             check_mesh_geometry(mesh)?;
@@ -259,7 +296,7 @@ pub fn bake(
     let views = settings.views();
     let nv = views.len();
     crate::check_memory(
-        mesh.vertex_count() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
+        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
     )?;
     let ng = vertex_geometric_normals(mesh);
     let scene = SliceScene {
@@ -268,9 +305,9 @@ pub fn bake(
         vertex_materials: &per_vertex,
     };
     let slice_settings = settings.slice_settings();
-    let progress = progress_bar(settings.progress, mesh.vertex_count() as u64, "vmf bake");
+    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
     let per_vertex_slices: Vec<Vec<TransferSlice>> = with_threads(settings.threads, || {
-        (0..mesh.vertex_count())
+        vertices
             .into_par_iter()
             .map(|x| {
                 let point = SurfacePoint {
@@ -294,11 +331,7 @@ pub fn bake(
             .collect()
     })?;
     progress.finish_and_clear();
-    Ok(VmfBake {
-        settings: *settings,
-        views,
-        slices: per_vertex_slices.into_iter().flatten().collect(),
-    })
+    Ok(per_vertex_slices.into_iter().flatten().collect())
 }
 
 #[cfg(test)]

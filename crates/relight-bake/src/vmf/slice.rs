@@ -378,6 +378,9 @@ impl SliceSamples {
 
 /// [`trace_slice`] then [`SliceSamples::estimate`] with the paper's eq. 13
 /// ([`KappaEstimate::Banerjee`]) and `settings.kappa_max`.
+///
+/// # Panics
+/// Debug builds assert settings in range ([`SliceSettings::validate`]).
 pub fn transfer_slice(
     scene: &SliceScene,
     point: &SurfacePoint,

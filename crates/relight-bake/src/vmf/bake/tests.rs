@@ -191,3 +191,23 @@ fn bad_settings_and_scenes_are_refused_by_name() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn parts_of_a_bake_concatenate_to_the_whole() {
+    let (mesh, mats) = scene();
+    let caster = build_default(&mesh);
+    let whole = bake(&mesh, &mats, None, caster.as_ref(), &small()).expect("bake");
+    let n = mesh.vertex_count();
+    let mut parts = Vec::new();
+    for r in [0..7, 7..7, 7..20, 20..n] {
+        parts
+            .extend(bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r).expect("part"));
+    }
+    assert!(parts == whole.slices);
+    for r in [0..n + 1, n + 1..n + 2] {
+        assert!(matches!(
+            bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r),
+            Err(BakeError::Settings(_))
+        ));
+    }
+}
