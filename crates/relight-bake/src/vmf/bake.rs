@@ -7,7 +7,8 @@
 //! level 5) that lie strictly above the horizon, `z > 0`, **in the local frame** of each
 //! vertex (the paper's section 4.3: the BRDF then has the same shape for a view at every
 //! vertex). Views at or below the horizon see nothing of a one-sided surface and are not
-//! baked.
+//! baked (level 0 gives 4 views: the icosahedron has 4 vertices exactly on the horizon;
+//! level 1 gives 17).
 //!
 //! # Layout and determinism
 //! `slices[x * view_count + v]` (vertex-major). The slice of vertex `x` and view `v` draws
@@ -49,7 +50,7 @@ pub const MAX_VIEW_LEVEL: u32 = 5;
 )]
 pub struct VmfBakeSettings {
     /// Icosahedral subdivision level of the views, `0..=5` (frequency `2^level`; level 1
-    /// has 42 views on the sphere, 21 or so above the horizon).
+    /// has 42 vertices on the sphere, 17 of them strictly above the horizon).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().view_level))]
     pub view_level: u32,
     /// Paths per (vertex, view) slice.

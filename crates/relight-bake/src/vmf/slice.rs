@@ -27,8 +27,8 @@
 //!   classes `E G L`, `E G D L`, `E G G L` (with its `D` / `G` at the first bounce, and any
 //!   bounces after it).
 //!
-//! So each escaping path adds one sample `(s, weight)` to up to 2 x 2 of the 2 x 3 classes of
-//! the slice; every class's weight sum is an unbiased estimate of its transfer integral, and
+//! So each escaping path adds its direction `s` with its split weights to up to two (direct)
+//! or four (indirect) of the 2 x 3 classes of the slice; every class's weight sum is an unbiased estimate of its transfer integral, and
 //! the six sum to the estimate of the whole slice `int T(x, s, v) ds`. The paper instead
 //! spawns one continuation per term at each hit (section 5.1); splitting the weight of one
 //! continuation has the same expectation per class with one ray per bounce.

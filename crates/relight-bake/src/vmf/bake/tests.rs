@@ -49,6 +49,10 @@ fn views_are_the_upper_half_of_the_level() {
             views.len() <= all / 2 && views.len() >= all / 2 - 4 * (1 << level),
             "{level}"
         );
+        // The counts the module docs give (4 icosahedron vertices lie on the horizon).
+        if level <= 1 {
+            assert_eq!(views.len(), [4, 17][level as usize]);
+        }
     }
 }
 
