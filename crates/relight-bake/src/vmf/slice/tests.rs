@@ -206,7 +206,8 @@ impl TestEnv {
 
 /// Mean and standard error (channel x) of an independent path tracer's outgoing radiance at
 /// `p` towards `v` (local): the path tracer's own BRDF sampling ([`Material::sample`]) at
-/// every vertex, the same scattering rules and bounce limit as the slices.
+/// every vertex, the same scattering rules and bounce limit as the slices, written again
+/// here (no code of the module under test).
 fn path_traced(
     sc: &SliceScene,
     p: &SurfacePoint,
@@ -239,12 +240,27 @@ fn path_traced(
             if bounces >= max_bounces {
                 break;
             }
-            let Some((next, split)) = scatter(sc, &hit, ray.dir, &mut rng) else {
+            // Scatter without the code under test: one-sided, the nearest corner's material,
+            // the path tracer's sample weight `eval / pdf`.
+            let tri = hit.tri as usize;
+            let ng = sc.mesh.geometric_normal(tri);
+            if ng.dot(ray.dir) >= 0.0 {
+                break;
+            }
+            let f = Frame::from_normal(sc.mesh.shading_normal(tri, hit.u, hit.v).normalize());
+            let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
+            let k = (0..3).fold(0, |k, j| if bary[j] > bary[k] { j } else { k });
+            let m = sc.vertex_materials[sc.mesh.indices[tri][k] as usize];
+            let Some(s) = m.sample(f.to_local(-ray.dir), rng.next_vec2(), rng.next_f32()) else {
                 break;
             };
-            t *= split[0] + split[1];
+            let next = f.to_world(s.wo);
+            if next.dot(ng) <= 0.0 {
+                break;
+            }
+            t *= s.weight;
             bounces += 1;
-            ray = next;
+            ray = surface_ray(sc.mesh.point(tri, hit.u, hit.v), ng, next);
         }
     }
     let mean = sum / n as f32;
