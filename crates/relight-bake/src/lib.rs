@@ -7,6 +7,9 @@
 //!   per-view transport fitted by a flood fill with coherence terms.
 //! * [`cuts`]: precomputed visibility cuts (Cheslack-Postava et al. 2008): light samples, light
 //!   tree, per-vertex visibility cuts, merging of cuts, illumination cuts.
+//! * [`vmf`]: view-dependent glossy PRT with von Mises-Fisher lobes (Laurijssen & Dutré
+//!   2009): per-vertex, per-view transfer slices, one lobe per light-path class (bake layer
+//!   only; no adaptive refinement yet).
 //! * [`transport`]: what every baker shares: per-vertex albedo and geometric normals,
 //!   per-vertex low-discrepancy hemisphere samples, ray offsets, thread pools.
 //!
@@ -27,6 +30,7 @@ pub mod cuts;
 pub mod sg;
 pub mod sh;
 pub mod transport;
+pub mod vmf;
 
 /// Why a bake could not run: invalid settings or an inconsistent mesh.
 #[derive(Debug, thiserror::Error)]

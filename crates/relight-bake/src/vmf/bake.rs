@@ -1,0 +1,339 @@
+//! The vMF bake over views (paper sections 4.2 and 6.1, without the adaptive refinement):
+//! for every vertex, one [`TransferSlice`] per view of a fixed icosahedral level.
+//!
+//! # Views
+//! The views are the vertices of the geodesic icosahedron of subdivision level `view_level`
+//! (frequency `2^level`, [`Icosphere`]; level 0 is the icosahedron, the paper refines up to
+//! level 5) that lie strictly above the horizon, `z > 0`, **in the local frame** of each
+//! vertex (the paper's section 4.3: the BRDF then has the same shape for a view at every
+//! vertex). Views at or below the horizon see nothing of a one-sided surface and are not
+//! baked (level 0 gives 4 views: the icosahedron has 4 vertices exactly on the horizon;
+//! level 1 gives 17).
+//!
+//! # Layout and determinism
+//! `slices[x * view_count + v]` (vertex-major). The slice of vertex `x` and view `v` draws
+//! its random numbers from `Rng::new(seed, x * view_count + v)` only ([`trace_slice`]), so a
+//! bake depends on the seed, never on the threads. A vertex's point is its position, its
+//! normalised shading normal, its area-weighted geometric normal
+//! ([`crate::transport::vertex_geometric_normals`]) and its material
+//! ([`crate::sg::transport::vertex_materials`] unless given per vertex). A part of the
+//! vertices ([`bake_vertices`]) is therefore exactly that part of the whole bake (sharding).
+
+use super::slice::{
+    trace_slice, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
+};
+use super::Term;
+use crate::transport::{
+    check_mesh, check_mesh_geometry, progress_bar, vertex_geometric_normals, with_threads,
+};
+use crate::BakeError;
+use glam::Vec3;
+use rayon::prelude::*;
+use relight_scene::accel::RayCaster;
+use relight_scene::material::Material;
+use relight_scene::mesh::TriMesh;
+use relight_sphere::icosphere::Icosphere;
+use relight_sphere::vmf::KappaEstimate;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Largest icosahedral level of the views (the paper's maximum, section 6.1).
+pub const MAX_VIEW_LEVEL: u32 = 5;
+
+/// Settings of the vMF bake: what a `vmf` bundle will record (serde) and, with the `cli`
+/// feature, the options of a future `relight bake --method vmf`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
+#[cfg_attr(
+    feature = "cli",
+    command(next_help_heading = "vMF bake (--method vmf)")
+)]
+pub struct VmfBakeSettings {
+    /// Icosahedral subdivision level of the views, `0..=5` (frequency `2^level`; level 1
+    /// has 42 vertices on the sphere, 17 of them strictly above the horizon).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().view_level))]
+    pub view_level: u32,
+    /// Paths per (vertex, view) slice.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().paths))]
+    pub paths: u32,
+    /// Scatterings after the vertex (0: direct only; the paper's 1; `--bounces`).
+    #[cfg_attr(feature = "cli", arg(skip = 1u32))]
+    pub max_bounces: u32,
+    /// Samples per term for fitting the eq. 9 lobes of a vertex's material.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().material_samples))]
+    pub material_samples: u32,
+    /// Largest concentration of a slice lobe (finite, `>= 1`).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().kappa_max))]
+    pub kappa_max: f32,
+    /// Seed of all random numbers (`--seed`).
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub seed: u64,
+    /// Worker threads; `None` = all cores. Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub threads: Option<usize>,
+    /// Show a progress bar on stderr. Not recorded.
+    #[serde(skip)]
+    #[cfg_attr(feature = "cli", arg(skip))]
+    pub progress: bool,
+}
+
+impl Default for VmfBakeSettings {
+    /// Level 1 views, the slice defaults of [`SliceSettings::default`] (1024 paths, one
+    /// bounce, 1024 material samples, `kappa_max = 1e4`), seed 0, all cores, no progress bar.
+    fn default() -> Self {
+        let s = SliceSettings::default();
+        VmfBakeSettings {
+            view_level: 1,
+            paths: s.paths,
+            max_bounces: s.max_bounces,
+            material_samples: s.material_samples,
+            kappa_max: s.kappa_max,
+            seed: 0,
+            threads: None,
+            progress: false,
+        }
+    }
+}
+
+impl VmfBakeSettings {
+    /// The settings of each slice.
+    pub fn slice_settings(&self) -> SliceSettings {
+        SliceSettings {
+            paths: self.paths,
+            max_bounces: self.max_bounces,
+            material_samples: self.material_samples,
+            kappa_max: self.kappa_max,
+        }
+    }
+
+    /// Check the ranges documented on each field (and [`SliceSettings::validate`]).
+    ///
+    /// # Errors
+    /// [`BakeError::Settings`] naming the offending setting.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        if self.view_level > MAX_VIEW_LEVEL {
+            return Err(BakeError::Settings(format!(
+                "view_level {} is not in 0..={MAX_VIEW_LEVEL}",
+                self.view_level
+            )));
+        }
+        self.slice_settings().validate()
+    }
+
+    /// The views of `view_level` (local frame, unit, `z > 0`; module docs).
+    ///
+    /// # Panics
+    /// Debug builds assert a valid level.
+    pub fn views(&self) -> Vec<Vec3> {
+        debug_assert!(self.view_level <= MAX_VIEW_LEVEL);
+        Icosphere::new(1 << self.view_level)
+            .vertices()
+            .iter()
+            .copied()
+            .filter(|v| v.z > 0.0)
+            .collect()
+    }
+}
+
+/// A vMF bake: one transfer slice per vertex and view (layout in the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VmfBake {
+    /// The settings it was baked with.
+    pub settings: VmfBakeSettings,
+    /// The views (local frame, unit, `z > 0`).
+    pub views: Vec<Vec3>,
+    /// `vertex_count * views.len()` slices, vertex-major.
+    pub slices: Vec<TransferSlice>,
+}
+
+/// An invariant of a [`VmfBake`] that does not hold ([`VmfBake::validate`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid vMF bake: {0}")]
+pub struct InvalidVmfBake(pub String);
+
+impl VmfBake {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.slices.len().checked_div(self.views.len()).unwrap_or(0)
+    }
+
+    /// The slice of vertex `x` and view `v`.
+    ///
+    /// # Panics
+    /// If `x` or `v` is out of range.
+    pub fn slice(&self, x: usize, v: usize) -> &TransferSlice {
+        assert!(v < self.views.len(), "view {v} of {}", self.views.len());
+        &self.slices[x * self.views.len() + v]
+    }
+
+    /// Check every invariant: valid settings, the views of the level, one slice per vertex
+    /// and view, every lobe with a unit axis, a finite `kappa` in `[0, kappa_max]` and a
+    /// finite non-negative amplitude.
+    ///
+    /// # Errors
+    /// The first invariant that fails.
+    pub fn validate(&self) -> Result<(), InvalidVmfBake> {
+        let err = |m: String| Err(InvalidVmfBake(m));
+        if let Err(e) = self.settings.validate() {
+            return err(e.to_string());
+        }
+        if self.views != self.settings.views() {
+            return err(format!(
+                "{} views are not those of level {}",
+                self.views.len(),
+                self.settings.view_level
+            ));
+        }
+        if self.views.is_empty() || !self.slices.len().is_multiple_of(self.views.len()) {
+            return err(format!(
+                "{} slices for {} views",
+                self.slices.len(),
+                self.views.len()
+            ));
+        }
+        for (i, s) in self.slices.iter().enumerate() {
+            for t in Term::ALL {
+                for c in PathClass::ALL {
+                    let l = s.lobe(t, c);
+                    let (x, v) = (i / self.views.len(), i % self.views.len());
+                    if (l.axis.length() - 1.0).abs() > 1e-4 {
+                        return err(format!("vertex {x} view {v} {t:?} {c:?}: axis {}", l.axis));
+                    }
+                    if !(l.kappa >= 0.0 && l.kappa <= self.settings.kappa_max) {
+                        return err(format!(
+                            "vertex {x} view {v} {t:?} {c:?}: kappa {}",
+                            l.kappa
+                        ));
+                    }
+                    if !l.amplitude.is_finite() || l.amplitude.min_element() < 0.0 {
+                        return err(format!(
+                            "vertex {x} view {v} {t:?} {c:?}: amplitude {}",
+                            l.amplitude
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Bake the slices of every vertex of `mesh` for the views of `settings.view_level`, on all
+/// cores (or `settings.threads`), with a progress bar if `settings.progress`.
+///
+/// `materials` is the scene's per-triangle material list (indexed by `mesh.material_ids`);
+/// each vertex takes the material of its first triangle unless `vertex_materials` gives one
+/// per vertex. Paths scatter with the same per-vertex materials.
+///
+/// # Errors
+/// [`BakeError::Settings`] for out-of-range settings; [`BakeError::Scene`] for an
+/// inconsistent mesh or a material out of range; [`BakeError::Memory`] if the slices would
+/// not fit in memory; [`BakeError::Threads`].
+pub fn bake(
+    mesh: &TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &dyn RayCaster,
+    settings: &VmfBakeSettings,
+) -> Result<VmfBake, BakeError> {
+    let slices = bake_vertices(
+        mesh,
+        materials,
+        vertex_materials,
+        caster,
+        settings,
+        0..mesh.vertex_count(),
+    )?;
+    Ok(VmfBake {
+        settings: *settings,
+        views: settings.views(),
+        slices,
+    })
+}
+
+/// The slices of the vertices `vertices` only (vertex-major, `vertices.len() * views`), as
+/// [`bake`] computes them: each vertex is seeded by its index in the whole mesh, so the parts
+/// of a sharded bake concatenate to the whole bake exactly.
+///
+/// # Errors
+/// As [`bake`], and [`BakeError::Settings`] for a range outside the mesh.
+pub fn bake_vertices(
+    mesh: &TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    caster: &dyn RayCaster,
+    settings: &VmfBakeSettings,
+    vertices: Range<usize>,
+) -> Result<Vec<TransferSlice>, BakeError> {
+    settings.validate()?;
+    if vertices.start > vertices.end || vertices.end > mesh.vertex_count() {
+        return Err(BakeError::Settings(format!(
+            "vertex range {vertices:?} is not within 0..{}",
+            mesh.vertex_count()
+        )));
+    }
+    let per_vertex = match vertex_materials {
+        Some(m) => {
+            check_mesh_geometry(mesh)?;
+            if m.len() != mesh.vertex_count() {
+                return Err(BakeError::Scene(format!(
+                    "{} vertex materials for {} vertices",
+                    m.len(),
+                    mesh.vertex_count()
+                )));
+            }
+            m.to_vec()
+        }
+        None => {
+            check_mesh(mesh, materials)?;
+            crate::sg::transport::vertex_materials(mesh, materials)
+        }
+    };
+    for (v, m) in per_vertex.iter().enumerate() {
+        m.validate()
+            .map_err(|e| BakeError::Scene(format!("material of vertex {v}: {e}")))?;
+    }
+    let views = settings.views();
+    let nv = views.len();
+    crate::check_memory(
+        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
+    )?;
+    let ng = vertex_geometric_normals(mesh);
+    let scene = SliceScene {
+        mesh,
+        caster,
+        vertex_materials: &per_vertex,
+    };
+    let slice_settings = settings.slice_settings();
+    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
+    let per_vertex_slices: Vec<Vec<TransferSlice>> = with_threads(settings.threads, || {
+        vertices
+            .into_par_iter()
+            .map(|x| {
+                let point = SurfacePoint {
+                    position: mesh.positions[x],
+                    normal: mesh.normals[x].normalize_or_zero(),
+                    geometric_normal: ng[x],
+                    material: per_vertex[x],
+                };
+                let slices = views
+                    .iter()
+                    .enumerate()
+                    .map(|(v, &view)| {
+                        let stream = (x * nv + v) as u64;
+                        trace_slice(&scene, &point, view, &slice_settings, settings.seed, stream)
+                            .estimate(KappaEstimate::Banerjee, settings.kappa_max)
+                    })
+                    .collect();
+                progress.inc(1);
+                slices
+            })
+            .collect()
+    })?;
+    progress.finish_and_clear();
+    Ok(per_vertex_slices.into_iter().flatten().collect())
+}
+
+#[cfg(test)]
+mod tests;
