@@ -139,30 +139,25 @@ impl Section {
 /// Peak resident memory of this process since the last [`reset_peak_rss`] (or its start),
 /// MiB: Linux `VmHWM`; `None` elsewhere.
 pub fn peak_rss_mib() -> Option<f64> {
+    Some(status_kib("VmHWM:")? as f64 / 1024.0)
+}
+
+/// A `kB` field of `/proc/self/status` (`key` with its colon).
+fn status_kib(key: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let kib: f64 = status
+    status
         .lines()
-        .find_map(|l| l.strip_prefix("VmHWM:"))?
+        .find_map(|l| l.strip_prefix(key))?
         .trim()
         .trim_end_matches("kB")
         .trim()
         .parse()
-        .ok()?;
-    Some(kib / 1024.0)
+        .ok()
 }
 
 /// The resident memory of this process now, bytes (Linux `VmRSS`), if known.
 pub fn resident_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let kib: u64 = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))?
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kib << 10)
+    Some(status_kib("VmRSS:")? << 10)
 }
 
 /// Reset the peak of [`peak_rss_mib`] to the current resident memory (Linux: `5` written to

@@ -486,14 +486,7 @@ fn append_cuts(c: &mut crate::cuts::CutsBaked, p: crate::cuts::CutsBaked) -> Res
     if p.bake.samples != c.bake.samples || p.bake.tree != c.bake.tree {
         return Err("parts with different light samples or light trees".into());
     }
-    let (dst, src) = (&mut c.bake.cuts, p.bake.cuts);
-    let (base_v, base_e) = (dst.vertex_count() as u32, dst.index.len() as u64);
-    dst.offsets
-        .extend(src.offsets.iter().skip(1).map(|&o| o + base_e));
-    dst.index.extend(src.index);
-    dst.leftleaf.extend(src.leftleaf);
-    dst.value.extend(src.value);
-    dst.capped.extend(src.capped.iter().map(|&v| v + base_v));
+    c.bake.cuts.append(p.bake.cuts);
     c.record.seconds += p.record.seconds;
     Ok(())
 }

@@ -206,6 +206,21 @@ pub enum CutError {
 }
 
 impl VertexCuts {
+    /// Append `other`'s vertices after this one's (offsets and capped vertices rebased): the
+    /// cuts of consecutive vertex ranges put together.
+    pub fn append(&mut self, other: VertexCuts) {
+        if self.offsets.is_empty() {
+            self.offsets.push(0);
+        }
+        let (base_v, base_e) = (self.vertex_count() as u32, self.index.len() as u64);
+        self.offsets
+            .extend(other.offsets.iter().skip(1).map(|&o| o + base_e));
+        self.index.extend(other.index);
+        self.leftleaf.extend(other.leftleaf);
+        self.value.extend(other.value);
+        self.capped.extend(other.capped.iter().map(|&v| v + base_v));
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.offsets.len().saturating_sub(1)

@@ -306,13 +306,7 @@ fn concat(parts: Vec<VertexCuts>) -> VertexCuts {
         ..Default::default()
     };
     for p in parts {
-        let (base_v, base_e) = (out.vertex_count() as u32, out.index.len() as u64);
-        out.offsets
-            .extend(p.offsets.iter().skip(1).map(|&o| o + base_e));
-        out.index.extend(p.index);
-        out.leftleaf.extend(p.leftleaf);
-        out.value.extend(p.value);
-        out.capped.extend(p.capped.iter().map(|&v| v + base_v));
+        out.append(p);
     }
     out
 }
