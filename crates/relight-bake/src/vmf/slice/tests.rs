@@ -293,6 +293,17 @@ fn samples_render(samples: &SliceSamples, env: &TestEnv) -> (Vec3, f64) {
     (sum, ((s2 / m - mean * mean).max(0.0) / m).sqrt())
 }
 
+/// Run `f` on the slice scene of [`occluded_scene`].
+fn with_occluded<T>(f: impl FnOnce(&SliceScene) -> T) -> T {
+    let (mesh, mats) = occluded_scene();
+    let caster = build_default(&mesh);
+    f(&SliceScene {
+        mesh: &mesh,
+        caster: caster.as_ref(),
+        vertex_materials: &mats,
+    })
+}
+
 fn occluded_scene() -> (TriMesh, Vec<Material>) {
     scene(true, blinn(32.0), lambert(0.6))
 }
@@ -333,163 +344,148 @@ fn render_lobes<'a>(lobes: impl IntoIterator<Item = &'a VmfLobe>, env: &TestEnv)
 ///    3.6 %, 12 %), so they must do better than one lobe and stay within 15 %.
 #[test]
 fn slice_lobes_render_like_the_path_tracer() {
-    let (mesh, mats) = occluded_scene();
-    let caster = build_default(&mesh);
-    let sc = SliceScene {
-        mesh: &mesh,
-        caster: caster.as_ref(),
-        vertex_materials: &mats,
-    };
-    let settings = SliceSettings {
-        paths: 8192,
-        max_bounces: 2,
-        ..Default::default()
-    };
-    let env = test_env();
-    let p = origin(blinn(32.0));
-    let frame = Frame::from_normal(Vec3::Y);
-    let opts = EmOptions {
-        kappa_max: settings.kappa_max,
-        ..Default::default()
-    };
-    for world_view in [
-        Vec3::new(0.6, 0.7, -0.2),
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::new(-0.5, 0.4, 0.3),
-    ] {
-        let v = frame.to_local(world_view.normalize());
-        let samples = trace_slice(&sc, &p, v, &settings, 4, 1);
-        let slice = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
-        let (reference, ref_err) = path_traced(&sc, &p, v, &env, 2, 50_000);
-        let (mc, mc_err) = samples_render(&samples, &env);
-        let err = (ref_err * ref_err + mc_err * mc_err).sqrt();
-        assert!(
-            (mc.x as f64 - reference.x as f64).abs() < 5.0 * err,
-            "view {world_view}: samples {mc} +- {mc_err}, path tracer {reference} +- {ref_err}"
-        );
-        // The indirect classes carry something here (the box is lit and seen).
-        assert!(slice.class_integral(PathClass::IndirectDiffuse).x > 0.0);
+    with_occluded(|sc| {
+        let settings = SliceSettings {
+            paths: 8192,
+            max_bounces: 2,
+            ..Default::default()
+        };
+        let env = test_env();
+        let p = origin(blinn(32.0));
+        let frame = Frame::from_normal(Vec3::Y);
+        let opts = EmOptions {
+            kappa_max: settings.kappa_max,
+            ..Default::default()
+        };
+        for world_view in [
+            Vec3::new(0.6, 0.7, -0.2),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-0.5, 0.4, 0.3),
+        ] {
+            let v = frame.to_local(world_view.normalize());
+            let samples = trace_slice(&sc, &p, v, &settings, 4, 1);
+            let slice = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
+            let (reference, ref_err) = path_traced(&sc, &p, v, &env, 2, 50_000);
+            let (mc, mc_err) = samples_render(&samples, &env);
+            let err = (ref_err * ref_err + mc_err * mc_err).sqrt();
+            assert!(
+                (mc.x as f64 - reference.x as f64).abs() < 5.0 * err,
+                "view {world_view}: samples {mc} +- {mc_err}, path tracer {reference} +- {ref_err}"
+            );
+            // The indirect classes carry something here (the box is lit and seen).
+            assert!(slice.class_integral(PathClass::IndirectDiffuse).x > 0.0);
 
-        let rel = |a: Vec3, b: Vec3| ((a - b).abs() / b).max_element();
-        let glossy = slice.lobe(Term::Glossy, PathClass::Direct);
-        let glossy_samples: Vec3 = samples
-            .class(Term::Glossy, PathClass::Direct)
-            .iter()
-            .map(|w| w.weight * env.radiance(w.dir))
-            .sum();
-        let gap_glossy = rel(render_lobes([glossy], &env), glossy_samples);
-        assert!(
-            gap_glossy < 0.12,
-            "view {world_view}: glossy direct gap {gap_glossy}"
-        );
-        let one = slice.shade(env.ambient, &env.light);
-        assert_eq!(one, render_lobes(slice.lobes.iter().flatten(), &env));
-        let gap_one = rel(one, mc);
-        assert!(
-            gap_one < 0.30,
-            "view {world_view}: lobes {one}, samples {mc}, path tracer {reference}"
-        );
-        let fits = samples.fit_em_nested(3, &opts);
-        let three = render_lobes(
-            fits.iter()
-                .flatten()
-                .filter_map(|f| f.last())
-                .flat_map(|f| f.lobes.iter()),
-            &env,
-        );
-        let gap_three = rel(three, mc);
-        assert!(
+            let rel = |a: Vec3, b: Vec3| ((a - b).abs() / b).max_element();
+            let glossy = slice.lobe(Term::Glossy, PathClass::Direct);
+            let glossy_samples: Vec3 = samples
+                .class(Term::Glossy, PathClass::Direct)
+                .iter()
+                .map(|w| w.weight * env.radiance(w.dir))
+                .sum();
+            let gap_glossy = rel(render_lobes([glossy], &env), glossy_samples);
+            assert!(
+                gap_glossy < 0.12,
+                "view {world_view}: glossy direct gap {gap_glossy}"
+            );
+            let one = slice.shade(env.ambient, &env.light);
+            assert_eq!(one, render_lobes(slice.lobes.iter().flatten(), &env));
+            let gap_one = rel(one, mc);
+            assert!(
+                gap_one < 0.30,
+                "view {world_view}: lobes {one}, samples {mc}, path tracer {reference}"
+            );
+            let fits = samples.fit_em_nested(3, &opts);
+            let three = render_lobes(
+                fits.iter()
+                    .flatten()
+                    .filter_map(|f| f.last())
+                    .flat_map(|f| f.lobes.iter()),
+                &env,
+            );
+            let gap_three = rel(three, mc);
+            assert!(
             gap_three < 0.15 && gap_three < gap_one,
             "view {world_view}: three lobes {three} (gap {gap_three}), one {one} (gap {gap_one})"
         );
-    }
+        }
+    });
 }
 
 /// (d) More EM lobes per class never lower the likelihood, and the EM's one lobe is at least
 /// as likely as the closed-form eq. 13-14 lobe.
 #[test]
 fn nested_em_per_class_never_lowers_the_likelihood() {
-    let (mesh, mats) = occluded_scene();
-    let caster = build_default(&mesh);
-    let sc = SliceScene {
-        mesh: &mesh,
-        caster: caster.as_ref(),
-        vertex_materials: &mats,
-    };
-    let settings = SliceSettings {
-        paths: 2048,
-        max_bounces: 1,
-        ..Default::default()
-    };
-    let p = origin(blinn(32.0));
-    let v = Frame::from_normal(Vec3::Y).to_local(Vec3::new(-0.6, 0.5, 0.0).normalize());
-    let samples = trace_slice(&sc, &p, v, &settings, 3, 2);
-    let opts = EmOptions {
-        kappa_max: settings.kappa_max,
-        max_iterations: 100,
-        ..Default::default()
-    };
-    let fits = samples.fit_em_nested(3, &opts);
-    let closed = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
-    let mut checked = 0;
-    for t in Term::ALL {
-        for c in PathClass::ALL {
-            let f = &fits[t.index()][c.index()];
-            let data = samples.class(t, c);
-            if data.is_empty() {
-                assert!(f.is_empty());
-                continue;
-            }
-            assert_eq!(f.len(), 3);
-            for k in 1..3 {
+    with_occluded(|sc| {
+        let settings = SliceSettings {
+            paths: 2048,
+            max_bounces: 1,
+            ..Default::default()
+        };
+        let p = origin(blinn(32.0));
+        let v = Frame::from_normal(Vec3::Y).to_local(Vec3::new(-0.6, 0.5, 0.0).normalize());
+        let samples = trace_slice(&sc, &p, v, &settings, 3, 2);
+        let opts = EmOptions {
+            kappa_max: settings.kappa_max,
+            max_iterations: 100,
+            ..Default::default()
+        };
+        let fits = samples.fit_em_nested(3, &opts);
+        let closed = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
+        let mut checked = 0;
+        for t in Term::ALL {
+            for c in PathClass::ALL {
+                let f = &fits[t.index()][c.index()];
+                let data = samples.class(t, c);
+                if data.is_empty() {
+                    assert!(f.is_empty());
+                    continue;
+                }
+                assert_eq!(f.len(), 3);
+                for k in 1..3 {
+                    assert!(
+                        f[k].log_likelihood >= f[k - 1].log_likelihood,
+                        "{t:?} {c:?}: {} lobes {} < {} lobes {}",
+                        k + 1,
+                        f[k].log_likelihood,
+                        k,
+                        f[k - 1].log_likelihood
+                    );
+                }
+                let one = log_likelihood(data, &[*closed.lobe(t, c)]).expect("samples");
+                // 1e-5 nats: the closed-form lobe is rounded to f32 (the EM's is not).
                 assert!(
-                    f[k].log_likelihood >= f[k - 1].log_likelihood,
-                    "{t:?} {c:?}: {} lobes {} < {} lobes {}",
-                    k + 1,
-                    f[k].log_likelihood,
-                    k,
-                    f[k - 1].log_likelihood
+                    f[0].log_likelihood >= one - 1e-5,
+                    "{t:?} {c:?}: EM {} < closed form {one}",
+                    f[0].log_likelihood
                 );
+                // Energy kept by every fit.
+                let total: Vec3 = data.iter().map(|w| w.weight).sum();
+                for fit in f {
+                    let a: Vec3 = fit.lobes.iter().map(|l| l.amplitude).sum();
+                    assert!((a - total).abs().max_element() <= 1e-4 * total.max_element());
+                }
+                checked += 1;
             }
-            let one = log_likelihood(data, &[*closed.lobe(t, c)]).expect("samples");
-            // 1e-5 nats: the closed-form lobe is rounded to f32 (the EM's is not).
-            assert!(
-                f[0].log_likelihood >= one - 1e-5,
-                "{t:?} {c:?}: EM {} < closed form {one}",
-                f[0].log_likelihood
-            );
-            // Energy kept by every fit.
-            let total: Vec3 = data.iter().map(|w| w.weight).sum();
-            for fit in f {
-                let a: Vec3 = fit.lobes.iter().map(|l| l.amplitude).sum();
-                assert!((a - total).abs().max_element() <= 1e-4 * total.max_element());
-            }
-            checked += 1;
         }
-    }
-    assert!(checked >= 4, "only {checked} classes had samples");
+        assert!(checked >= 4, "only {checked} classes had samples");
+    });
 }
 
 #[test]
 fn slices_are_deterministic_per_seed_and_stream() {
-    let (mesh, mats) = occluded_scene();
-    let caster = build_default(&mesh);
-    let sc = SliceScene {
-        mesh: &mesh,
-        caster: caster.as_ref(),
-        vertex_materials: &mats,
-    };
-    let s = SliceSettings {
-        paths: 256,
-        max_bounces: 3,
-        ..Default::default()
-    };
-    let p = origin(blinn(16.0));
-    let v = view(30.0);
-    let a = trace_slice(&sc, &p, v, &s, 7, 11);
-    assert_eq!(a, trace_slice(&sc, &p, v, &s, 7, 11));
-    assert_ne!(a, trace_slice(&sc, &p, v, &s, 7, 12));
-    assert_ne!(a, trace_slice(&sc, &p, v, &s, 8, 11));
+    with_occluded(|sc| {
+        let s = SliceSettings {
+            paths: 256,
+            max_bounces: 3,
+            ..Default::default()
+        };
+        let p = origin(blinn(16.0));
+        let v = view(30.0);
+        let a = trace_slice(&sc, &p, v, &s, 7, 11);
+        assert_eq!(a, trace_slice(&sc, &p, v, &s, 7, 11));
+        assert_ne!(a, trace_slice(&sc, &p, v, &s, 7, 12));
+        assert_ne!(a, trace_slice(&sc, &p, v, &s, 8, 11));
+    });
 }
 
 /// A point on the floor inside a closed box: every path hits a back face (surfaces are
