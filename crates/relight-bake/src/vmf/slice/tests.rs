@@ -363,9 +363,9 @@ fn slice_lobes_render_like_the_path_tracer() {
             Vec3::new(-0.5, 0.4, 0.3),
         ] {
             let v = frame.to_local(world_view.normalize());
-            let samples = trace_slice(&sc, &p, v, &settings, 4, 1);
+            let samples = trace_slice(sc, &p, v, &settings, 4, 1);
             let slice = samples.estimate(KappaEstimate::Banerjee, settings.kappa_max);
-            let (reference, ref_err) = path_traced(&sc, &p, v, &env, 2, 50_000);
+            let (reference, ref_err) = path_traced(sc, &p, v, &env, 2, 50_000);
             let (mc, mc_err) = samples_render(&samples, &env);
             let err = (ref_err * ref_err + mc_err * mc_err).sqrt();
             assert!(
@@ -423,7 +423,7 @@ fn nested_em_per_class_never_lowers_the_likelihood() {
         };
         let p = origin(blinn(32.0));
         let v = Frame::from_normal(Vec3::Y).to_local(Vec3::new(-0.6, 0.5, 0.0).normalize());
-        let samples = trace_slice(&sc, &p, v, &settings, 3, 2);
+        let samples = trace_slice(sc, &p, v, &settings, 3, 2);
         let opts = EmOptions {
             kappa_max: settings.kappa_max,
             max_iterations: 100,
@@ -481,10 +481,10 @@ fn slices_are_deterministic_per_seed_and_stream() {
         };
         let p = origin(blinn(16.0));
         let v = view(30.0);
-        let a = trace_slice(&sc, &p, v, &s, 7, 11);
-        assert_eq!(a, trace_slice(&sc, &p, v, &s, 7, 11));
-        assert_ne!(a, trace_slice(&sc, &p, v, &s, 7, 12));
-        assert_ne!(a, trace_slice(&sc, &p, v, &s, 8, 11));
+        let a = trace_slice(sc, &p, v, &s, 7, 11);
+        assert_eq!(a, trace_slice(sc, &p, v, &s, 7, 11));
+        assert_ne!(a, trace_slice(sc, &p, v, &s, 7, 12));
+        assert_ne!(a, trace_slice(sc, &p, v, &s, 8, 11));
     });
 }
 
