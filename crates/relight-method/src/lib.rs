@@ -249,6 +249,32 @@ pub trait Method {
     fn load(bundle: &Bundle, path: &Path) -> Result<Self::Baked, MethodError>;
 }
 
+/// A material from inline JSON (starting with `{`) or the path of a `.json` file holding
+/// one (a regular file of at most 64 MiB), validated.
+///
+/// # Errors
+/// A message naming the file or the JSON and the problem.
+pub fn parse_material(text: &str) -> Result<relight_scene::material::Material, String> {
+    let (json, origin) = if text.trim_start().starts_with('{') {
+        (text.to_string(), "the material".to_string())
+    } else {
+        let bytes = relight_scene::io::files::read_file(
+            std::path::Path::new(text),
+            relight_scene::io::files::MAX_TEXT_BYTES,
+            "material file",
+        )
+        .map_err(|e| format!("not inline JSON, and {e}"))?;
+        (
+            String::from_utf8_lossy(&bytes).into_owned(),
+            text.to_string(),
+        )
+    };
+    let m: relight_scene::material::Material =
+        serde_json::from_str(&json).map_err(|e| format!("{origin}: not a valid material: {e}"))?;
+    m.validate().map_err(|e| format!("{origin}: {e}"))?;
+    Ok(m)
+}
+
 /// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
 // One `Baked` exists per loaded bundle (never in arrays), and its arms hold large heap data
 // either way: boxing the larger arm would buy nothing.

@@ -46,20 +46,7 @@ impl MaterialBlend {
     /// [`MethodError::Settings`] naming the file or the JSON and the problem.
     pub fn parse(to: &str, axis: Vec3) -> Result<MaterialBlend, MethodError> {
         let bad = |m: String| MethodError::Settings(m);
-        let (text, origin) = if to.trim_start().starts_with('{') {
-            (to.to_string(), "the blend material".to_string())
-        } else {
-            let bytes = relight_scene::io::files::read_file(
-                Path::new(to),
-                relight_scene::io::files::MAX_TEXT_BYTES,
-                "material file",
-            )
-            .map_err(|e| bad(format!("blend material: not inline JSON, and {e}")))?;
-            (String::from_utf8_lossy(&bytes).into_owned(), to.to_string())
-        };
-        let to: Material = serde_json::from_str(&text)
-            .map_err(|e| bad(format!("{origin}: not a valid material: {e}")))?;
-        to.validate().map_err(|e| bad(format!("{origin}: {e}")))?;
+        let to = crate::parse_material(to).map_err(|e| bad(format!("blend material: {e}")))?;
         if !(axis.is_finite() && axis != Vec3::ZERO) {
             return Err(bad(format!("blend axis {axis} has no direction")));
         }

@@ -30,34 +30,8 @@ pub struct CutsFrameSettings {
     /// Render every surface with this material instead of the scene's (nothing of the
     /// materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
     /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one.
-    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = parse_material))]
+    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = crate::parse_material))]
     pub material: Option<Material>,
-}
-
-/// A material from inline JSON (starting with `{`) or the path of a `.json` file holding
-/// one (a regular file of at most 64 MiB), validated.
-///
-/// # Errors
-/// A message naming the file or the JSON and the problem.
-pub fn parse_material(text: &str) -> Result<Material, String> {
-    let (json, origin) = if text.trim_start().starts_with('{') {
-        (text.to_string(), "the material".to_string())
-    } else {
-        let bytes = relight_scene::io::files::read_file(
-            std::path::Path::new(text),
-            relight_scene::io::files::MAX_TEXT_BYTES,
-            "material file",
-        )
-        .map_err(|e| format!("not inline JSON, and {e}"))?;
-        (
-            String::from_utf8_lossy(&bytes).into_owned(),
-            text.to_string(),
-        )
-    };
-    let m: Material =
-        serde_json::from_str(&json).map_err(|e| format!("{origin}: not a valid material: {e}"))?;
-    m.validate().map_err(|e| format!("{origin}: {e}"))?;
-    Ok(m)
 }
 
 impl Default for CutsFrameSettings {
