@@ -117,12 +117,7 @@ pub(super) fn for_each_row(
     let texels = if data { target.len() } else { 0 };
     for i in 0..texels {
         let (w, t) = (target.dirs[i], target.values[i]);
-        let mut live = t != [0.0; 3];
-        for (k, l) in lobes.iter().enumerate() {
-            e[k] = lam[k] * (dot(l.mu, w) - 1.0);
-            live |= e[k] > ln_eps;
-        }
-        if !live {
+        if !texel_exponents(lobes, &lam, w, t, ln_eps, &mut e) {
             continue;
         }
         let sw = target.sqrt_w[i];
@@ -234,6 +229,25 @@ pub(super) fn ln_epsilon(o: &FitOptions) -> f64 {
     }
 }
 
+/// The exponents `e[k] = lambda_k (mu_k . w - 1)` of texel `w` with data `v`, and whether the
+/// texel counts: its data is not zero, or some lobe is above `ln_eps` there ([`ln_epsilon`]).
+#[inline]
+fn texel_exponents(
+    lobes: &[Lobe64],
+    lam: &[f64],
+    w: [f64; 3],
+    v: [f64; 3],
+    ln_eps: f64,
+    e: &mut [f64],
+) -> bool {
+    let mut live = v != [0.0; 3];
+    for (k, l) in lobes.iter().enumerate() {
+        e[k] = lam[k] * (dot(l.mu, w) - 1.0);
+        live |= e[k] > ln_eps;
+    }
+    live
+}
+
 /// The data term alone (the rows of [`for_each_row`] without their Jacobian): the hot loop
 /// of every trial step.
 pub(super) fn data_cost(t: &FitTarget, lobes: &[Lobe64], o: &FitOptions) -> f64 {
@@ -248,12 +262,7 @@ pub(super) fn data_cost(t: &FitTarget, lobes: &[Lobe64], o: &FitOptions) -> f64 
     let mut sum = 0.0;
     for i in 0..t.len() {
         let (w, v) = (t.dirs[i], t.values[i]);
-        let mut live = v != [0.0; 3];
-        for (k, l) in lobes.iter().enumerate() {
-            e[k] = lam[k] * (dot(l.mu, w) - 1.0);
-            live |= e[k] > ln_eps;
-        }
-        if !live {
+        if !texel_exponents(lobes, &lam, w, v, ln_eps, &mut e) {
             continue;
         }
         let mut f = [-v[0], -v[1], -v[2]];
@@ -291,12 +300,7 @@ pub(super) fn normal_equations(
     let (mut uu, mut ru) = (vec![0.0; q * q], vec![0.0; 3 * q]);
     for i in 0..t.len() {
         let (w, v) = (t.dirs[i], t.values[i]);
-        let mut live = v != [0.0; 3];
-        for (k, l) in lobes.iter().enumerate() {
-            e[k] = lam[k] * (dot(l.mu, w) - 1.0);
-            live |= e[k] > ln_eps;
-        }
-        if !live {
+        if !texel_exponents(lobes, &lam, w, v, ln_eps, &mut e) {
             continue;
         }
         let sw = t.sqrt_w[i];
