@@ -426,18 +426,10 @@ pub fn finish_parts(
         )));
     }
     let plan = region_plan(mesh, settings);
-    let res = [
-        settings.direct_res,
-        if settings.indirect_lobes > 0 {
-            settings.indirect_res
-        } else {
-            0
-        },
-    ];
     let fitted = fit::finish::<transport::TransportContext>(
         &plan,
         &fit_config(settings),
-        res,
+        settings.resolutions(),
         whole,
         None,
         &indicatif::ProgressBar::hidden(),

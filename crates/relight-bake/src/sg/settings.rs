@@ -93,6 +93,17 @@ impl Default for SgBakeSettings {
 }
 
 impl SgBakeSettings {
+    /// Face sizes of the direct and indirect cube maps the transport tabulates (indirect 0,
+    /// no indirect component, when `indirect_lobes` is 0).
+    pub fn resolutions(&self) -> [usize; 2] {
+        let indirect = if self.indirect_lobes > 0 {
+            self.indirect_res
+        } else {
+            0
+        };
+        [self.direct_res, indirect]
+    }
+
     /// Check the ranges documented on each field (and those of [`SgFitSettings`]).
     ///
     /// The indirect settings (`indirect_res`, `indirect_paths`, `max_depth`) are only checked

@@ -289,12 +289,9 @@ impl<'a> TransportContext<'a> {
             m.validate()
                 .map_err(|e| scene(format!("material of vertex {v}: {e}")))?;
         }
-        let direct = CubeTable::new(settings.direct_res);
-        let indirect = CubeTable::new(if settings.indirect_lobes > 0 {
-            settings.indirect_res
-        } else {
-            0
-        });
+        let [direct_res, indirect_res] = settings.resolutions();
+        let direct = CubeTable::new(direct_res);
+        let indirect = CubeTable::new(indirect_res);
         let n2 = sh_count(settings.diffuse_order);
         let mut sh = vec![0.0f32; direct.len() * n2];
         for (d, y) in direct.dirs.iter().zip(sh.chunks_exact_mut(n2)) {
