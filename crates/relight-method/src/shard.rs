@@ -361,11 +361,11 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<crate::BakeSummary, 
     let mut check = Checker::new(first_path, &first)?;
     let mut order: Vec<PathBuf> = vec![PathBuf::new(); check.count];
     let mut head = None;
+    let mut first = Some(first);
     for (nth, path) in paths.iter().enumerate() {
-        let b = if nth == 0 {
-            first.clone()
-        } else {
-            crate::read_any(path)?
+        let b = match first.take() {
+            Some(b) => b,
+            None => crate::read_any(path)?,
         };
         let index = check.check(nth, path, &b)?;
         order[index] = path.clone();
@@ -373,7 +373,6 @@ pub fn merge_files(paths: &[PathBuf], out: &Path) -> Result<crate::BakeSummary, 
             head = Some(b);
         }
     }
-    drop(first);
     check.complete()?;
     let mut head = head.expect("part 0 is there");
     let r = head.record_mut();
