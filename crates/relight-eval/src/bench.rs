@@ -27,12 +27,15 @@
 //!     block of vertices against casting the same rays), extrapolated to the whole mesh; the
 //!     illumination cut at the budgets 128, 256, 512; the per-pixel merge kernel; light-tree
 //!     variants.
+//! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512) split into G-buffer,
+//!     per-triangle merge and shading, against the per-fragment merge in the same run.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
 //! repeated calls after a warm-up) and [`process_cpu_ms`] (CPU time of all threads, which a
 //! machine shared with other jobs does not inflate).
 
 pub mod cuts_bake;
+pub mod cuts_frame;
 pub mod hybrid;
 pub mod prefilter;
 pub mod projection;
@@ -211,7 +214,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 11] = [
+pub const SECTIONS: [&str; 12] = [
     "rays",
     "sh-bake",
     "shard",
@@ -223,6 +226,7 @@ pub const SECTIONS: [&str; 11] = [
     "sg-bake",
     "sg-frame",
     "cuts-bake",
+    "cuts-frame",
 ];
 
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
@@ -303,6 +307,9 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         cuts_bake::sections(&a.bake_mesh, &a.data, a.quick)?
             .into_iter()
             .for_each(&mut push);
+    }
+    if on("cuts-frame") {
+        push(cuts_frame::section(&a.bake_mesh, &a.data, a.quick)?);
     }
     Ok(report)
 }

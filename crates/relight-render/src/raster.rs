@@ -262,6 +262,62 @@ where
     split(px, frame.width as usize, frame.height as usize)
 }
 
+/// Deferred shading by triangle: like [`render_deferred`], but within each band of rows the
+/// covered samples are grouped by triangle and `shade` is called once per (band, triangle)
+/// with all of that triangle's fragments, filling one radiance per fragment. A shader with
+/// per-triangle set-up (the `cuts` renderer merges its triangle's three vertex cuts once)
+/// pays it once per band instead of once per sample. Same samples, coverage and resolve as
+/// [`render_deferred`]: with a shader that treats fragments independently both give the same
+/// image.
+///
+/// # Panics
+/// If `opts.supersample == 0` or the camera's image is empty, or if `shade` leaves its
+/// output slice's length unchanged is violated (debug).
+pub fn render_deferred_batched<F>(
+    mesh: &TriMesh,
+    camera: &Camera,
+    background: Option<&Environment>,
+    opts: &RasterOptions,
+    shade: F,
+) -> Rendered
+where
+    F: Fn(u32, &[Fragment], &mut [Vec3]) + Sync,
+{
+    let frame = camera.frame();
+    let ss = opts.supersample as usize;
+    let px = rasterise(
+        mesh,
+        &frame,
+        Corner::Barycentric,
+        opts.supersample,
+        |row0, rows, s: &Samples, out: &mut [(Vec3, f32)]| {
+            // Covered samples sorted by triangle (stable: sample order within a triangle).
+            let mut covered: Vec<u32> = (0..s.depth.len() as u32)
+                .filter(|&k| s.depth[k as usize] > 0.0)
+                .collect();
+            covered.sort_by_key(|&k| s.id[k as usize]);
+            let mut color = vec![Vec3::ZERO; s.depth.len()];
+            let (mut frags, mut radiance) = (Vec::new(), Vec::new());
+            for run in covered.chunk_by(|&a, &b| s.id[a as usize] == s.id[b as usize]) {
+                let tri = s.id[run[0] as usize];
+                frags.clear();
+                frags.extend(
+                    run.iter()
+                        .map(|&k| Fragment::new(mesh, tri, s.attr[k as usize])),
+                );
+                radiance.clear();
+                radiance.resize(run.len(), Vec3::ZERO);
+                shade(tri, &frags, &mut radiance);
+                for (&k, &c) in run.iter().zip(&radiance) {
+                    color[k as usize] = c;
+                }
+            }
+            resolve(row0, rows, ss, &frame, background, s, out, |k| color[k])
+        },
+    );
+    split(px, frame.width as usize, frame.height as usize)
+}
+
 /// Split resolved `(radiance, coverage)` pixels into a [`Rendered`].
 fn split(px: Vec<(Vec3, f32)>, w: usize, h: usize) -> Rendered {
     let (pixels, coverage) = px.into_iter().unzip();
@@ -1029,6 +1085,33 @@ mod tests {
                     .count();
                 assert_eq!(cov as f32 / (n * n) as f32, *c);
             }
+        }
+    }
+
+    #[test]
+    fn batched_deferred_shading_equals_per_fragment_shading() {
+        let (mesh, camera) = tilted_quad();
+        let shade = |f: &Fragment| f.position.abs() + Vec3::from_array(f.bary) * (f.tri + 1) as f32;
+        for ss in [1, 2] {
+            let opts = RasterOptions { supersample: ss };
+            let a = render_deferred(&mesh, &camera, None, &opts, shade);
+            let calls = std::sync::atomic::AtomicUsize::new(0);
+            let b = render_deferred_batched(&mesh, &camera, None, &opts, |tri, fs, out| {
+                calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                for (f, o) in fs.iter().zip(out) {
+                    assert_eq!(f.tri, tri, "a batch holds one triangle");
+                    *o = shade(f);
+                }
+            });
+            assert_eq!(a.coverage, b.coverage);
+            assert_eq!(a.image.pixels, b.image.pixels, "bit-identical");
+            // Batches are per (band, triangle): far fewer calls than covered samples.
+            let samples: f32 = a.coverage.iter().sum::<f32>() * (ss * ss) as f32;
+            let calls = calls.into_inner();
+            assert!(
+                calls > 0 && (calls as f32) < samples / 4.0,
+                "{calls} vs {samples}"
+            );
         }
     }
 }

@@ -18,8 +18,9 @@
 
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use glam::Vec3;
+use relight_bake::cuts::cut::dequantise;
 use relight_bake::cuts::light_cut::LightCut;
-use relight_bake::cuts::merge::shade;
+use relight_bake::cuts::merge::{merge_cuts, shade, CutKeys};
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
@@ -27,6 +28,7 @@ use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
 use relight_sphere::warp::Frame;
+use std::f32::consts::FRAC_1_PI;
 
 /// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated (directions
 /// below are lifted to it; see [`CutsShader::shade_fragment`]).
@@ -79,28 +81,17 @@ impl<'a> CutsShader<'a> {
         let material = self.materials[self.mesh.material_ids[f.tri as usize] as usize];
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
-        let function = self.function;
         shade(&self.bake.tree, light, cuts, f.bary, |w| {
-            let wo = frame.to_local(w);
-            match function {
-                CutFunction::VisibilityCosine => {
-                    // A cluster straddling the horizon may have its mean direction below it
-                    // while its visible lights (the cut's mean) are above: evaluate the BRDF
-                    // at the direction lifted onto the horizon.
-                    let wo = if wo.z >= HORIZON {
-                        wo
-                    } else {
-                        Vec3::new(wo.x, wo.y, HORIZON).normalize()
-                    };
-                    material.eval(wi, wo) / wo.z
-                }
-                CutFunction::Visibility => material.eval(wi, wo),
-            }
+            self.brdf(&material, wi, frame.to_local(w))
         })
     }
 
     /// Render `camera` under `light` (the environment drawn behind the objects if
-    /// `background`).
+    /// `background`): [`raster::render_deferred_batched`], which hands over a triangle's
+    /// fragments together, so its merged cut ([`TriangleCut`]) is built once per triangle
+    /// and band of rows and summed per fragment. Equal to [`CutsShader::shade_fragment`] at
+    /// every fragment up to f32 rounding (tested); that per-fragment merge is the slow
+    /// reference.
     ///
     /// # Panics
     /// If `opts.supersample == 0` or the camera's image is empty.
@@ -111,10 +102,242 @@ impl<'a> CutsShader<'a> {
         background: Option<&Environment>,
         opts: &RasterOptions,
     ) -> Rendered {
+        self.render_stage(light, camera, background, opts, CutsStage::Full)
+    }
+
+    /// [`CutsShader::render`] stopped after `stage` (the time split of `relight bench`):
+    /// the fragments are black before [`CutsStage::Full`].
+    ///
+    /// # Panics
+    /// As [`CutsShader::render`].
+    pub fn render_stage(
+        &self,
+        light: &LightCut,
+        camera: &Camera,
+        background: Option<&Environment>,
+        opts: &RasterOptions,
+        stage: CutsStage,
+    ) -> Rendered {
+        let eye = Vec3::from_array(camera.origin);
+        raster::render_deferred_batched(self.mesh, camera, background, opts, |tri, fs, out| {
+            if stage == CutsStage::GBuffer {
+                return;
+            }
+            TRIANGLE_CUT.with_borrow_mut(|t| {
+                t.build(self, light, tri);
+                if stage == CutsStage::Full {
+                    self.shade_triangle(t, tri, fs, eye, out);
+                }
+            })
+        })
+    }
+
+    /// Render with the per-fragment merge ([`CutsShader::shade_fragment`]): the slow
+    /// reference of [`CutsShader::render`] (tests and `relight bench`).
+    ///
+    /// # Panics
+    /// As [`CutsShader::render`].
+    pub fn render_per_fragment(
+        &self,
+        light: &LightCut,
+        camera: &Camera,
+        background: Option<&Environment>,
+        opts: &RasterOptions,
+    ) -> Rendered {
         let eye = Vec3::from_array(camera.origin);
         raster::render_deferred(self.mesh, camera, background, opts, |f| {
             self.shade_fragment(light, f, eye)
         })
+    }
+
+    /// Eq. 5 at each fragment of triangle `tri` from its merged cut `t`.
+    fn shade_triangle(
+        &self,
+        t: &TriangleCut,
+        tri: u32,
+        fs: &[Fragment],
+        eye: Vec3,
+        out: &mut [Vec3],
+    ) {
+        let material = self.materials[self.mesh.material_ids[tri as usize] as usize];
+        for (f, o) in fs.iter().zip(out.iter_mut()) {
+            let n = f.shading_normal;
+            let view = (eye - f.position).normalize_or_zero();
+            if view.dot(n) <= 0.0 {
+                *o = Vec3::ZERO; // one-sided materials, as the path tracer's
+                continue;
+            }
+            let b = f.bary;
+            *o = match (material, self.function) {
+                // eval / cos = albedo / pi for every cluster: the sum factors per corner.
+                (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
+                    albedo * FRAC_1_PI * (t.sums[0] * b[0] + t.sums[1] * b[1] + t.sums[2] * b[2])
+                }
+                // eval = albedo / pi max(0, n . w): no frame needed.
+                (Material::Lambert { albedo }, CutFunction::Visibility) => {
+                    albedo * FRAC_1_PI * t.lambert_sum(b, n)
+                }
+                _ => {
+                    let frame = Frame::from_normal(n);
+                    let wi = frame.to_local(view);
+                    let mut sum = Vec3::ZERO;
+                    for k in 0..t.len() {
+                        let (power, v, dir) = t.cluster(k, b);
+                        if v > 0.0 {
+                            sum += power * v * self.brdf(&material, wi, frame.to_local(dir));
+                        }
+                    }
+                    sum
+                }
+            };
+        }
+    }
+
+    /// The BRDF factor of one merged cluster in the shading frame (see
+    /// [`CutsShader::shade_fragment`]).
+    #[inline]
+    fn brdf(&self, material: &Material, wi: Vec3, wo: Vec3) -> Vec3 {
+        match self.function {
+            CutFunction::VisibilityCosine => {
+                let wo = if wo.z >= HORIZON {
+                    wo
+                } else {
+                    Vec3::new(wo.x, wo.y, HORIZON).normalize()
+                };
+                material.eval(wi, wo) / wo.z
+            }
+            CutFunction::Visibility => material.eval(wi, wo),
+        }
+    }
+}
+
+/// How far [`CutsShader::render_stage`] goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CutsStage {
+    /// Rasterise the G-buffer and group its fragments by triangle only.
+    GBuffer,
+    /// Also merge each triangle's cuts with the light cut.
+    Merge,
+    /// Also shade every fragment: the frame.
+    Full,
+}
+
+thread_local! {
+    /// Each rendering thread's [`TriangleCut`] (reused, so a frame allocates once per thread).
+    static TRIANGLE_CUT: std::cell::RefCell<TriangleCut> = Default::default();
+}
+
+/// Lanes of the per-fragment sums (independent partial sums the compiler can keep in one
+/// SIMD register each); a [`TriangleCut`]'s length is padded to a multiple of it.
+const LANES: usize = 8;
+
+/// One triangle's merged cut: the union of its three vertex cuts and the light cut (the
+/// traversal of sec. 3.2), with what the per-fragment sum of Eq. 5 needs of each cluster
+/// `k`: `|C'_k| <L O>_k`, the three corners' visibility means and the cluster's direction,
+/// as structure-of-arrays padded with zero clusters to a multiple of [`LANES`]. Clusters no
+/// corner sees, or that hold no light, are dropped (they add nothing).
+#[derive(Default)]
+struct TriangleCut {
+    /// `|C'_k| <L O>_k`, per colour channel.
+    power: [Vec<f32>; 3],
+    /// `<v_j>_k` of corners `j = 0, 1, 2`.
+    vis: [Vec<f32>; 3],
+    /// The cluster's mean direction ([`relight_bake::cuts::tree::LightTree::direction`]),
+    /// per axis.
+    dir: [Vec<f32>; 3],
+    /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
+    sums: [Vec3; 3],
+    /// Clusters of this triangle, padding included (the arrays may be longer).
+    len: usize,
+}
+
+impl TriangleCut {
+    /// Clusters, padding included.
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
+    /// grow, and are written by index; a merged cut is at most as long as its four cuts
+    /// together).
+    fn build(&mut self, shader: &CutsShader<'_>, light: &LightCut, tri: u32) {
+        self.sums = [Vec3::ZERO; 3];
+        let [a, b, c] = shader.mesh.indices[tri as usize];
+        let cuts = [
+            shader.bake.cuts.cut(a as usize),
+            shader.bake.cuts.cut(b as usize),
+            shader.bake.cuts.cut(c as usize),
+        ];
+        let bound = (light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>())
+            .next_multiple_of(LANES);
+        if self.power[0].len() < bound {
+            for a in [&mut self.power, &mut self.vis, &mut self.dir] {
+                a.iter_mut().for_each(|x| x.resize(bound, 0.0));
+            }
+        }
+        let keys = [
+            CutKeys::from(light),
+            cuts[0].into(),
+            cuts[1].into(),
+            cuts[2].into(),
+        ];
+        let mut n = 0;
+        let mut sums = [Vec3::ZERO; 3];
+        merge_cuts(keys, |node, pos| {
+            let q = [
+                cuts[0].value[pos[1]],
+                cuts[1].value[pos[2]],
+                cuts[2].value[pos[3]],
+            ];
+            let power = light.value[pos[0]] * node.leaves() as f32;
+            if q == [0; 3] || power == Vec3::ZERO {
+                return;
+            }
+            let dir = shader.bake.tree.direction(node.index);
+            for j in 0..3 {
+                let v = dequantise(q[j]);
+                sums[j] += power * v;
+                self.vis[j][n] = v;
+                self.power[j][n] = power[j];
+                self.dir[j][n] = dir[j];
+            }
+            n += 1;
+        });
+        self.sums = sums;
+        self.len = n.next_multiple_of(LANES);
+        // Zero clusters pad the last lane group.
+        for a in [&mut self.power, &mut self.vis, &mut self.dir] {
+            a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
+        }
+    }
+
+    /// Cluster `k`'s power, visibility interpolated with `b`, and direction.
+    #[inline]
+    fn cluster(&self, k: usize, b: [f32; 3]) -> (Vec3, f32, Vec3) {
+        let at = |a: &[Vec<f32>; 3]| Vec3::new(a[0][k], a[1][k], a[2][k]);
+        let v = b[0] * self.vis[0][k] + b[1] * self.vis[1][k] + b[2] * self.vis[2][k];
+        (at(&self.power), v, at(&self.dir))
+    }
+
+    /// `sum_k power_k (b . vis_k) max(0, n . dir_k)`: Eq. 5 for a Lambert BRDF without its
+    /// `albedo / pi`, over [`LANES`] partial sums.
+    fn lambert_sum(&self, b: [f32; 3], n: Vec3) -> Vec3 {
+        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
+            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
+        }
+        let groups = self.len / LANES;
+        let (p, v, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
+        let mut acc = [[0.0f32; LANES]; 3];
+        for i in 0..groups {
+            for l in 0..LANES {
+                let c = (n.x * d[0][i][l] + n.y * d[1][i][l] + n.z * d[2][i][l]).max(0.0);
+                let w = (b[0] * v[0][i][l] + b[1] * v[1][i][l] + b[2] * v[2][i][l]) * c;
+                for ch in 0..3 {
+                    acc[ch][l] += p[ch][i][l] * w;
+                }
+            }
+        }
+        Vec3::from_array(acc.map(|a| a.iter().sum()))
     }
 }
 
@@ -214,6 +437,80 @@ mod tests {
                 (mean - exact).length() < 0.03 * exact.length(),
                 "{function:?}: {mean} vs {exact}"
             );
+        }
+    }
+
+    /// The batched renderer equals the per-fragment merge (its slow reference) for every
+    /// material and cut function, on a sphere shadowing a plane (cuts of every length).
+    #[test]
+    fn batched_frame_equals_per_fragment_merge() {
+        let mut mesh = ground_plane(Vec3::ZERO, 4.0, 6);
+        let sphere = relight_scene::shapes::uv_sphere(Vec3::new(0.0, 0.6, 0.0), 0.6, 8, 12);
+        mesh.append(&sphere, 0);
+        let caster = build(&mesh, Backend::Bvh).unwrap();
+        let materials = [
+            Material::Lambert {
+                albedo: Vec3::new(0.2, 0.5, 0.8),
+            },
+            Material::BlinnPhong {
+                diffuse: Vec3::splat(0.3),
+                specular: Vec3::splat(0.5),
+                exponent: 40.0,
+            },
+            Material::GgxConductor {
+                specular: Vec3::new(0.9, 0.6, 0.3),
+                alpha: 0.2,
+            },
+        ];
+        // A sky brighter towards +x, so the sum depends on direction.
+        let env = Environment::new(EnvMap::latlong_from_fn(32, 16, |d| {
+            Vec3::splat(1.0 + d.x.max(0.0) * 4.0)
+        }));
+        let camera = Camera {
+            origin: [0.5, 2.5, 3.0],
+            target: [0.0, 0.3, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 40.0,
+            width: 24,
+            height: 20,
+        };
+        for function in [CutFunction::VisibilityCosine, CutFunction::Visibility] {
+            let settings = CutsBakeSettings {
+                lights: 2048,
+                function,
+                ..Default::default()
+            };
+            let bake =
+                bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count()).unwrap();
+            let radiance = sample_radiance(&bake.samples, &env).unwrap();
+            let power: Vec<Vec3> = radiance
+                .iter()
+                .zip(&bake.samples.solid_angles)
+                .map(|(&l, &w)| l * w)
+                .collect();
+            let light = LightCut::build(&bake.tree, &power, 2.0, 256).unwrap();
+            for material in materials {
+                let shader = CutsShader::new(&mesh, vec![material], &bake, function);
+                let opts = RasterOptions { supersample: 2 };
+                let fast = shader.render(&light, &camera, None, &opts);
+                let slow = shader.render_per_fragment(&light, &camera, None, &opts);
+                assert_eq!(fast.coverage, slow.coverage);
+                let peak = slow
+                    .image
+                    .pixels
+                    .iter()
+                    .map(|p| p.max_element())
+                    .fold(0.0, f32::max);
+                assert!(peak > 0.0);
+                for (p, q) in fast.image.pixels.iter().zip(&slow.image.pixels) {
+                    // The same terms summed in another order (the Lambert sums factor per
+                    // corner): f32 rounding only.
+                    assert!(
+                        (*p - *q).abs().max_element() <= 1e-5 * peak,
+                        "{function:?} {material:?}: {p} vs {q}"
+                    );
+                }
+            }
         }
     }
 }

@@ -46,6 +46,15 @@ use std::time::Instant;
 /// The bake-time target of issue 11 on 2 cores, seconds.
 pub const TARGET_SECONDS: f64 = 180.0;
 
+/// A 512 x 257 sky with a 0.006 sr sun of radiance 2000 (the illumination cuts' test light).
+pub(super) fn sky_with_sun() -> Environment {
+    let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
+    Environment::new(EnvMap::latlong_from_fn(512, 257, |d| {
+        let s = if d.dot(sun) > 0.999 { 2000.0 } else { 0.0 };
+        Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y.max(0.0)) + Vec3::splat(s)
+    }))
+}
+
 /// The sections: the bake (samples, tree, cuts vs rays, extrapolation) and the light cut.
 ///
 /// # Errors
@@ -144,12 +153,7 @@ pub(super) fn sections(
     ]);
 
     // Illumination cuts of a sky with a sun (512 x 256 latlong).
-    let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
-    let map = EnvMap::latlong_from_fn(512, 257, |d| {
-        let s = if d.dot(sun) > 0.999 { 2000.0 } else { 0.0 };
-        Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y.max(0.0)) + Vec3::splat(s)
-    });
-    let env = Environment::new(map);
+    let env = sky_with_sun();
     let radiance_ms = median_ms(3, || {
         std::hint::black_box(sample_radiance(&samples, &env).ok());
     });

@@ -1,0 +1,176 @@
+//! The cuts frame (section "cuts-frame"; issue 11's target: a 512 x 512 frame at light cut
+//! 256 at 6.4 fps, the paper's GPU figure for Hebe, on 2 cores).
+//!
+//! The whole mesh (`bunny.obj`, else a procedural sphere on a plane) is baked once per cut
+//! function with the default settings (32,768 lights; 4,096 with `quick`), then rendered at
+//! 512 x 512, one sample per pixel, under a sky with a sun
+//! ([`super::cuts_bake::sky_with_sun`]), for a Lambert and a GGX material at the light cuts
+//! 128, 256 and 512. Each frame is split into its stages
+//! ([`relight_render::shade_cuts::CutsStage`]): the G-buffer (rasterise and group fragments
+//! by triangle), the merge of every visible triangle's three vertex cuts with the light cut
+//! (once per triangle and band of rows), and the shading of every fragment. The **baseline**,
+//! measured in the same run, is the per-fragment merge (`render_per_fragment`: the three
+//! cuts merged again at every fragment, the paper's per-pixel algorithm as written).
+
+use super::{median, process_cpu_ms, Section};
+use crate::Result;
+use glam::Vec3;
+use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
+use relight_bake::cuts::samples::sample_radiance;
+use relight_bake::cuts::visibility::CutFunction;
+use relight_bake::cuts::{bake_range, CutsBakeSettings};
+use relight_method::MethodError;
+use relight_render::raster::RasterOptions;
+use relight_render::shade_cuts::{CutsShader, CutsStage};
+use relight_scene::accel;
+use relight_scene::camera::Camera;
+use relight_scene::material::Material;
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// The frame target of issue 11, milliseconds (6.4 fps).
+pub const TARGET_MS: f64 = 1e3 / 6.4;
+
+/// The section: bake, then the stages of the frame per function, material and light cut.
+///
+/// # Errors
+/// A mesh that cannot be read, or a bake that fails.
+pub(super) fn section(
+    bake_mesh: &Option<PathBuf>,
+    data: &Option<PathBuf>,
+    quick: bool,
+) -> Result<Section> {
+    let (name, mesh) = match super::shared_mesh(bake_mesh, data, "data/meshes/bunny.obj")? {
+        Some(x) => x,
+        None => {
+            eprintln!("bench: no bunny.obj: using a procedural sphere on a plane");
+            let mut m =
+                relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
+            m.append(&relight_scene::shapes::ground_plane(Vec3::ZERO, 4.0, 64), 0);
+            ("procedural sphere + plane".into(), m)
+        }
+    };
+    let (lo, hi) = mesh.bounds().expect("a non-empty mesh");
+    let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
+    let eye = centre + Vec3::new(0.3, 0.4, 1.0).normalize() * radius * 2.6;
+    let camera = Camera::look_at(eye.to_array(), centre.to_array(), 45.0, 512, 512);
+    let env = super::cuts_bake::sky_with_sun();
+    let caster = accel::build_default(&mesh);
+    let lights = if quick {
+        4096
+    } else {
+        CutsBakeSettings::default().lights
+    };
+    let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
+    let runs = if quick { 1 } else { 3 };
+    let threads = rayon::current_num_threads();
+    let mut sec = Section::new(
+        format!(
+            "Cuts frame 512 x 512, 1 spp: {name} ({} vertices), {lights} lights, sigma 2, \
+             {threads} threads; per-fragment merge = baseline (same run)",
+            mesh.vertex_count()
+        ),
+        &[
+            "cut function",
+            "mean cut",
+            "material",
+            "light cut",
+            "G-buffer (ms)",
+            "merge (ms)",
+            "shading (ms)",
+            "frame (ms)",
+            "frame CPU (ms)",
+            "per-fragment merge (ms)",
+            "speed-up",
+            "target (ms)",
+        ],
+    );
+    let materials = [
+        Material::Lambert {
+            albedo: Vec3::splat(0.7),
+        },
+        Material::GgxConductor {
+            specular: Vec3::splat(0.9),
+            alpha: 0.2,
+        },
+    ];
+    for function in [CutFunction::Visibility, CutFunction::VisibilityCosine] {
+        let settings = CutsBakeSettings {
+            lights,
+            function,
+            ..Default::default()
+        };
+        let t0 = Instant::now();
+        let bake = bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count())
+            .map_err(MethodError::from)?;
+        eprintln!(
+            "bench: cuts bake ({function:?}) {:.1} s",
+            t0.elapsed().as_secs_f64()
+        );
+        let radiance = sample_radiance(&bake.samples, &env).map_err(bad)?;
+        let power: Vec<Vec3> = radiance
+            .iter()
+            .zip(&bake.samples.solid_angles)
+            .map(|(&l, &w)| l * w)
+            .collect();
+        for material in materials {
+            let shader = CutsShader::new(
+                &mesh,
+                vec![
+                    material;
+                    mesh.material_ids
+                        .iter()
+                        .max()
+                        .map_or(1, |&m| m as usize + 1)
+                ],
+                &bake,
+                function,
+            );
+            for budget in LIGHT_CUT_BUDGETS {
+                let light = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
+                    .map_err(bad)?;
+                let opts = RasterOptions { supersample: 1 };
+                let time = |stage: CutsStage| {
+                    let mut ms = vec![];
+                    let mut cpu = 0.0;
+                    for i in 0..=runs {
+                        let (c0, t0) = (process_cpu_ms(), Instant::now());
+                        std::hint::black_box(
+                            shader.render_stage(&light, &camera, None, &opts, stage),
+                        );
+                        if i > 0 {
+                            ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                            cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
+                        }
+                    }
+                    (median(ms), cpu / runs as f64)
+                };
+                let (gbuffer, _) = time(CutsStage::GBuffer);
+                let (merged, _) = time(CutsStage::Merge);
+                let (frame, frame_cpu) = time(CutsStage::Full);
+                let t0 = Instant::now();
+                std::hint::black_box(shader.render_per_fragment(&light, &camera, None, &opts));
+                let baseline = t0.elapsed().as_secs_f64() * 1e3;
+                sec.row(vec![
+                    json!(format!("{function:?}")),
+                    json!(bake.cuts.mean_len()),
+                    json!(match material {
+                        Material::Lambert { .. } => "Lambert",
+                        _ => "GGX conductor a=0.2",
+                    }),
+                    json!(budget),
+                    json!(gbuffer),
+                    json!(merged - gbuffer),
+                    json!(frame - merged),
+                    json!(frame),
+                    json!(frame_cpu),
+                    json!(baseline),
+                    json!(baseline / frame),
+                    json!(TARGET_MS),
+                ]);
+            }
+        }
+    }
+    Ok(sec)
+}
