@@ -43,7 +43,7 @@ pub struct CutsBakeSettings {
     pub sigma: f32,
     /// The function each vertex cut approximates: visibility times the cosine, or the
     /// paper's binary visibility (the cosine then in the BRDF at render time).
-    #[cfg_attr(feature = "cli", arg(long = "cut-function", value_enum, default_value_t = CutFunction::VisibilityCosine))]
+    #[cfg_attr(feature = "cli", arg(long = "cut-function", value_enum, default_value_t = CutFunction::Visibility))]
     pub function: CutFunction,
     /// Cap on a visibility cut's nodes (the paper's 1000), `1..=MAX_CUT_CAP`.
     #[cfg_attr(feature = "cli", arg(long = "cut-max", default_value_t = DEFAULT_MAX_CUT as u32))]
@@ -75,13 +75,13 @@ pub struct CutsBakeSettings {
 }
 
 impl Default for CutsBakeSettings {
-    /// The paper's: 32K lights, sigma 2, visibility times cosine, cap 1000, geometric tree (data-driven: beta 0.5,
+    /// The paper's: 32K lights, sigma 2, binary visibility, cap 1000, geometric tree (data-driven: beta 0.5,
     /// 1024 clusters), K 30, seed 0, all cores, no progress bar.
     fn default() -> Self {
         CutsBakeSettings {
             lights: DEFAULT_SAMPLES as u32,
             sigma: DEFAULT_SIGMA,
-            function: CutFunction::VisibilityCosine,
+            function: CutFunction::Visibility,
             max_cut: DEFAULT_MAX_CUT as u32,
             tree: LightTreeKind::Geometric,
             beta: DEFAULT_BETA,

@@ -3,9 +3,9 @@
 //! pilot visibility vectors of sec. 3.4).
 //!
 //! For vertex `p` with unit shading normal `n`, light `i` gets `v_i = V(w_i) max(0, n . w_i)`
-//! ([`CutFunction::VisibilityCosine`], the default) or `V(w_i) [n . w_i > 0]`
-//! ([`CutFunction::Visibility`], the paper's binary visibility, the cosine left to the BRDF at
-//! render time); see the [`crate::cuts`] conventions. One shadow ray per light above the
+//! ([`CutFunction::VisibilityCosine`]) or `V(w_i) [n . w_i > 0]` ([`CutFunction::Visibility`],
+//! the paper's binary visibility and the default, the cosine left to the BRDF at render
+//! time); see the [`crate::cuts`] conventions. One shadow ray per light above the
 //! shading horizon,
 //! leaving `p` offset along its area-weighted geometric normal exactly as the SH bake's rays
 //! ([`crate::transport::surface_ray`]: a direction above the shading normal but below the
@@ -35,11 +35,14 @@ use std::ops::Range;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum CutFunction {
-    /// `V(w) max(0, n . w)`: visibility times the clamped cosine of the vertex normal.
-    #[default]
+    /// `V(w) max(0, n . w)`: visibility times the clamped cosine of the vertex normal
+    /// (cuts 2.3-2.7x shorter, but the cosine of a coarse cluster straddling the horizon
+    /// lights a band beyond a sphere's terminator: larger errors, docs/RESULTS.md §11).
     VisibilityCosine,
     /// `V(w) [n . w > 0]`: binary visibility above the vertex's horizon (the paper's `V`,
-    /// sec. 3.1, with the cosine in the BRDF, so a per-pixel normal can change it).
+    /// sec. 3.1, with the cosine in the BRDF, so a per-pixel normal can change it). The
+    /// default: closer to the path tracer on every scene measured (docs/RESULTS.md §11).
+    #[default]
     Visibility,
 }
 
