@@ -182,4 +182,36 @@ fn bad_settings_and_foreign_options_are_refused() {
     assert_clean_failure(&o, "prefilter-size", &img);
     let o = relight(&["render", s(&good), "-o", s(&img), "--method", "sh"]);
     assert_clean_failure(&o, "cuts", &img);
+    // Materials chosen at render time: an unknown BRDF and an out-of-range parameter.
+    let o = relight(&[
+        "render",
+        s(&good),
+        "-o",
+        s(&img),
+        "--material",
+        r#"{"type": "velvet"}"#,
+    ]);
+    assert_clean_failure(&o, "velvet", &img);
+    let rough = r#"{"type": "ggx_conductor", "specular": [0.9, 0.9, 0.9], "alpha": 7}"#;
+    let o = relight(&["render", s(&good), "-o", s(&img), "--material", rough]);
+    assert_clean_failure(&o, "alpha", &img);
+    let missing = dir.join("no-such-material.json");
+    let o = relight(&["render", s(&good), "-o", s(&img), "--material", s(&missing)]);
+    assert_clean_failure(&o, "no-such-material.json", &img);
+    // A bundle of another method given to --method cuts: the message names both.
+    let sh = dir.join("sh.relight");
+    let o = relight(&[
+        "bake",
+        s(&sc),
+        "-o",
+        s(&sh),
+        "--method",
+        "sh",
+        "--samples",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relight(&["render", s(&sh), "-o", s(&img), "--method", "cuts"]);
+    assert_clean_failure(&o, "sh", &img);
+    assert!(stderr(&o).contains("cuts"), "{}", stderr(&o));
 }
