@@ -4,8 +4,9 @@
 use crate::args::{self, arg_names, named, refuse_foreign, Out};
 use anyhow::{bail, ensure, Context, Result};
 use clap::ArgMatches;
+use relight_bake::cuts::{CutsBakeSettings, LightTreeKind};
 use relight_bake::sg::SgBakeSettings;
-use relight_eval::{hybrid, sg, sg_basis, sh};
+use relight_eval::{cuts, hybrid, sg, sg_basis, sh};
 use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgSettings;
 use std::path::PathBuf;
@@ -21,6 +22,9 @@ pub enum EvalMethod {
     Sg,
     /// Green 2005 Fig. 3-3: SG vs Haar vs SH on three transport functions (no Mitsuba).
     SgBasis,
+    /// Cheslack-Postava 2008 Fig. 9 and 10 (cuts against Mitsuba; materials edited after
+    /// the bake).
+    Cuts,
 }
 
 /// Arguments of `relight eval`.
@@ -85,6 +89,17 @@ pub struct Args {
     /// SG options.
     #[command(flatten)]
     pub sg: SgBakeSettings,
+    /// Cuts: illumination-cut budgets to render each bake with, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [128usize, 256, 512])]
+    pub light_cuts: Vec<usize>,
+    /// Cuts: score only the scene's own materials (skip re-rendering the bake with the
+    /// edited materials, and their Mitsuba references).
+    #[arg(long)]
+    pub scene_materials_only: bool,
+    /// Cuts options (`--cut-tree` given: that tree only; else the geometric and the
+    /// data-driven tree in turn).
+    #[command(flatten)]
+    pub cuts: CutsBakeSettings,
 }
 
 /// The default experiments' example scene `name`, or an error saying where it was looked for.
@@ -156,7 +171,12 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Hybrid], arg_names::<HybridSettings>()),
             (&[Sg], arg_names::<SgBakeSettings>()),
             (&[Sg], named(&["budget", "experiments"])),
-            (&[Sh, Hybrid, Sg], named(&["width", "spp", "examples"])),
+            (&[Cuts], arg_names::<CutsBakeSettings>()),
+            (&[Cuts], named(&["light_cuts", "scene_materials_only"])),
+            (
+                &[Sh, Hybrid, Sg, Cuts],
+                named(&["width", "spp", "examples"]),
+            ),
         ],
     )?;
     ensure!(
@@ -236,6 +256,37 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             })?;
         }
         SgBasis => sg_basis::run(&a.out)?,
+        Cuts => {
+            for &b in &a.light_cuts {
+                ensure!(b >= 1, "--light-cuts {b}: a light cut has at least 1 node");
+            }
+            let scenes = if a.scenes.is_empty() {
+                cuts::DEFAULT_SCENES
+                    .iter()
+                    .map(|s| example(&a, s))
+                    .collect::<Result<Vec<_>>>()?
+            } else {
+                a.scenes.clone()
+            };
+            let tree_given = m.value_source("tree") == Some(clap::parser::ValueSource::CommandLine);
+            cuts::run(&cuts::CutsEval {
+                scenes,
+                settings: CutsBakeSettings {
+                    progress: true,
+                    ..a.cuts
+                },
+                trees: if tree_given {
+                    vec![a.cuts.tree]
+                } else {
+                    vec![LightTreeKind::Geometric, LightTreeKind::DataDriven]
+                },
+                light_cuts: a.light_cuts.clone(),
+                edited_materials: !a.scene_materials_only,
+                spp: a.spp,
+                width: a.width,
+                out: a.out.clone(),
+            })?;
+        }
     }
     print(&a, out)
 }

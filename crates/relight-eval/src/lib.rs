@@ -13,6 +13,7 @@
 //! * [`bench`](mod@bench): the benchmarks, each against a baseline measured in the same run.
 
 pub mod bench;
+pub mod cuts;
 pub mod demo;
 mod error;
 pub mod hybrid;
