@@ -33,6 +33,8 @@ use relight_scene::scene_file::SceneDesc;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+pub mod terms;
+
 /// The example scenes of the default experiments (Fig. 9's bunny, dragon and teapot).
 pub const DEFAULT_SCENES: [&str; 3] = ["bunny_grace.json", "cuts_dragon.json", "teapot_table.json"];
 
@@ -117,18 +119,43 @@ pub fn run(e: &CutsEval) -> Result<Vec<Row>> {
     let python = mitsuba_python()?;
     output::create_dir(&e.out)?;
     let mut rows = Vec::new();
+    let mut terms = Vec::new();
     for path in &e.scenes {
-        run_scene(e, path, &python, &mut rows)?;
+        run_scene(e, path, &python, &mut rows, &mut terms)?;
     }
-    output::results(&e.out, &table(&rows), &rows)?;
+    let mut md = table(&rows);
+    md.push_str(&terms_table(&terms));
+    let json = serde_json::to_string_pretty(&terms)
+        .map_err(|x| crate::EvalError::Options(format!("cannot write terms.json: {x}")))?;
+    relight_bundle::write_atomic(&e.out.join("terms.json"), json.as_bytes())?;
+    output::results(&e.out, &md, &rows)?;
     Ok(rows)
 }
 
 /// Bakes, renders and scores one scene, appending its rows.
-fn run_scene(e: &CutsEval, path: &Path, python: &Path, rows: &mut Vec<Row>) -> Result<()> {
+fn run_scene(
+    e: &CutsEval,
+    path: &Path,
+    python: &Path,
+    rows: &mut Vec<Row>,
+    terms_rows: &mut Vec<(String, terms::TermsRow)>,
+) -> Result<()> {
     let name = stem(path);
     let desc = with_width(SceneDesc::read(path)?, e.width);
     let scene = desc.build(path)?;
+    // Fig. 8a on this scene's visibility functions.
+    let caster = relight_scene::accel::build_default(&scene.mesh);
+    eprintln!("eval cuts: {name}: terms against error (Fig. 8a), {TERMS_VERTICES} vertices");
+    let t = terms::terms_vs_error(&terms::TermsInput {
+        mesh: &scene.mesh,
+        caster: caster.as_ref(),
+        vertices: TERMS_VERTICES,
+        lights: e.settings.lights as usize,
+        face: TERMS_FACE,
+        function: e.settings.function,
+    })?;
+    drop(caster);
+    terms_rows.extend(t.into_iter().map(|r| (name.clone(), r)));
     let dir = e.out.join(&name);
     let mask = coverage_mask(&scene);
     // The references: the scene's materials, then each edited material.
@@ -227,6 +254,40 @@ fn run_scene(e: &CutsEval, path: &Path, python: &Path, rows: &mut Vec<Row>) -> R
         }
     }
     Ok(())
+}
+
+/// Vertices of each scene whose visibility functions Fig. 8a's table approximates.
+pub const TERMS_VERTICES: usize = 256;
+/// Cube face size of its Haar functions (6 x 64 x 64 = 24,576 texels, next to the bake's
+/// 32,768 light samples).
+pub const TERMS_FACE: usize = 64;
+
+/// Fig. 8a's table: mean relative L2 error per term count, and the terms the cuts need to
+/// reach Haar's error.
+fn terms_table(rows: &[(String, terms::TermsRow)]) -> String {
+    let mut md = String::from(
+        "\n## Terms against error (Fig. 8a): visibility cuts and non-linear Haar wavelets\n\n\
+         Mean relative L2 error of each vertex's visibility function over 256 vertices: a cut \
+         of `m` nodes refined in Eq. 6's order (largest `|C| var` first) or greedily on the \
+         total error, and the `m` largest Haar coefficients of a 6 x 64 x 64 cube map; \
+         `x Haar` = terms the cut needs to reach Haar's error at `m`, over `m`.\n\n\
+         | scene | terms | cut, Eq. 6 order | cut, greedy | Haar | Eq. 6 cut terms / Haar's | greedy cut terms / Haar's |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    let ratio = |r: Option<f64>| r.map_or("-".into(), |r| format!("{r:.2}"));
+    for (scene, r) in rows {
+        let _ = writeln!(
+            md,
+            "| {scene} | {} | {} | {} | {} | {} | {} |",
+            r.terms,
+            output::pct(Some(r.cut_eq6)),
+            output::pct(Some(r.cut_greedy)),
+            output::pct(Some(r.haar)),
+            ratio(r.cut_eq6_terms_ratio),
+            ratio(r.cut_greedy_terms_ratio),
+        );
+    }
+    md
 }
 
 /// The illumination cut's length from a cuts frame's summary (`light cut N nodes`), 0 if
