@@ -24,11 +24,12 @@ use relight_bake::cuts::merge::{merge_cuts, shade, CutKeys};
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
+use relight_scene::material::microfacet;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
 use relight_sphere::warp::Frame;
-use std::f32::consts::FRAC_1_PI;
+use std::f32::consts::{FRAC_1_PI, PI};
 
 /// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated (directions
 /// below are lifted to it; see [`CutsShader::shade_fragment`]).
@@ -176,6 +177,10 @@ impl<'a> CutsShader<'a> {
                 // eval = albedo / pi max(0, n . w): no frame needed.
                 (Material::Lambert { albedo }, CutFunction::Visibility) => {
                     albedo * FRAC_1_PI * t.lambert_sum(b, n)
+                }
+                // The GGX conductor in world space over lanes (the same definition).
+                (Material::GgxConductor { specular, alpha }, CutFunction::Visibility) => {
+                    specular * t.ggx_sum(b, n, view, alpha)
                 }
                 _ => {
                     let frame = Frame::from_normal(n);
@@ -338,6 +343,46 @@ impl TriangleCut {
             }
         }
         Vec3::from_array(acc.map(|a| a.iter().sum()))
+    }
+
+    /// `sum_k power_k (b . vis_k) f(v, dir_k)` for the GGX conductor of `Material::eval`
+    /// without its specular colour, `f = D(h) G1(v, h) G1(w, h) / (4 n.v)` (height-separable
+    /// Smith masking, `relight_scene::material::microfacet`), evaluated in world space over
+    /// [`LANES`] partial sums: `n . h`, `tan^2` of `w` from `n . w`, and `G1(v, h)`, which
+    /// depends on the fragment only, hoisted. `n . v > 0` (the caller's one-sided test).
+    fn ggx_sum(&self, b: [f32; 3], n: Vec3, v: Vec3, alpha: f32) -> Vec3 {
+        let a2 = {
+            let a = alpha.max(microfacet::MIN_ALPHA);
+            a * a
+        };
+        let ci = n.dot(v);
+        let g1 = |c: f32| {
+            let tan2 = a2 * (1.0 - c * c) / (c * c);
+            2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt())
+        };
+        // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
+        let k = g1(ci) / (4.0 * ci) / (PI * a2);
+        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
+            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
+        }
+        let (p, vis, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
+        let mut acc = [[0.0f32; LANES]; 3];
+        for i in 0..self.len / LANES {
+            for l in 0..LANES {
+                let w = Vec3::new(d[0][i][l], d[1][i][l], d[2][i][l]);
+                let co = n.dot(w);
+                let h = v + w;
+                let hn = n.dot(h) / h.length();
+                let s = (1.0 - hn * hn) / a2 + hn * hn;
+                let x = (b[0] * vis[0][i][l] + b[1] * vis[1][i][l] + b[2] * vis[2][i][l]) * g1(co)
+                    / (s * s);
+                let x = if co > 0.0 && hn > 0.0 { x } else { 0.0 };
+                for ch in 0..3 {
+                    acc[ch][l] += p[ch][i][l] * x;
+                }
+            }
+        }
+        Vec3::from_array(acc.map(|a| a.iter().sum())) * k
     }
 }
 
