@@ -215,7 +215,7 @@ fn run_scene(
                     },
                 );
                 let frame_ms = out.times.vertex_ms + out.times.pixel_ms;
-                let mut cam512 = scene.camera.clone();
+                let mut cam512 = scene.camera;
                 (cam512.width, cam512.height) = (512, 512);
                 let o512 = frame.render(
                     &cam512,
