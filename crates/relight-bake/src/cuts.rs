@@ -47,7 +47,7 @@
 //!
 //! ```
 //! use relight_bake::cuts::{bake_range, light_cut::LightCut, merge::shade};
-//! use relight_bake::cuts::{samples::sample_radiance, CutsBakeSettings};
+//! use relight_bake::cuts::{samples::sample_power, CutsBakeSettings};
 //! use relight_scene::{accel, scene::Environment, shapes};
 //! use relight_sphere::{EnvMap, Vec3};
 //! # fn main() -> Result<(), relight_bake::BakeError> {
@@ -60,15 +60,14 @@
 //! bake.validate().expect("a fresh bake is valid");
 //! // A white sky: each light sample's power is its solid angle.
 //! let env = Environment::new(EnvMap::constant(Vec3::ONE));
-//! let radiance = sample_radiance(&bake.samples, &env)?;
-//! let power: Vec<Vec3> =
-//!     radiance.iter().zip(&bake.samples.solid_angles).map(|(&l, &w)| l * w).collect();
+//! let power = sample_power(&bake.samples, &env)?;
 //! let light = LightCut::build(&bake.tree, &power, 2.0, 256)?;
-//! // A white Lambertian corner (BRDF 1 / pi; the cosine is in the cuts): int V cos / pi,
-//! // 1 without the sphere, which hides about 5% of the cosine-weighted sky.
+//! // A white Lambertian corner (the cuts hold binary visibility, the default; the BRDF
+//! // times the cosine, evaluated at each merged cluster's direction, is 1 / pi n . w):
+//! // int V cos / pi, 1 without the sphere, which hides about 5% of the cosine-weighted sky.
 //! let c = bake.cuts.cut(0);
-//! let b = shade(&bake.tree, &light, [c, c, c], [1.0, 0.0, 0.0], |_| {
-//!     Vec3::splat(std::f32::consts::FRAC_1_PI)
+//! let b = shade(&bake.tree, &light, [c, c, c], [1.0, 0.0, 0.0], |w| {
+//!     Vec3::splat(w.y.max(0.0) * std::f32::consts::FRAC_1_PI)
 //! });
 //! assert!(b.x > 0.9 && b.x < 0.99, "{b}");
 //! # Ok(()) }

@@ -390,7 +390,7 @@ impl TriangleCut {
 mod tests {
     use super::*;
     use relight_bake::cuts::light_cut::LightCut;
-    use relight_bake::cuts::samples::sample_radiance;
+    use relight_bake::cuts::samples::sample_power;
     use relight_bake::cuts::{bake_range, CutsBakeSettings};
     use relight_scene::accel::{build, Backend};
     use relight_scene::shapes::ground_plane;
@@ -407,12 +407,7 @@ mod tests {
         };
         let bake = bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count()).unwrap();
         let env = Environment::new(EnvMap::constant(Vec3::ONE));
-        let radiance = sample_radiance(&bake.samples, &env).unwrap();
-        let power: Vec<Vec3> = radiance
-            .iter()
-            .zip(&bake.samples.solid_angles)
-            .map(|(&l, &w)| l * w)
-            .collect();
+        let power = sample_power(&bake.samples, &env).unwrap();
         let light = LightCut::build(&bake.tree, &power, 2.0, 512).unwrap();
         let materials = [material];
         let shader = CutsShader::new(&mesh, materials.to_vec(), &bake, function);
@@ -527,12 +522,7 @@ mod tests {
             };
             let bake =
                 bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count()).unwrap();
-            let radiance = sample_radiance(&bake.samples, &env).unwrap();
-            let power: Vec<Vec3> = radiance
-                .iter()
-                .zip(&bake.samples.solid_angles)
-                .map(|(&l, &w)| l * w)
-                .collect();
+            let power = sample_power(&bake.samples, &env).unwrap();
             let light = LightCut::build(&bake.tree, &power, 2.0, 256).unwrap();
             for material in materials {
                 let shader = CutsShader::new(&mesh, vec![material], &bake, function);

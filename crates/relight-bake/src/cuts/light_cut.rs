@@ -165,7 +165,7 @@ fn refine_by_intensity(
 mod tests {
     use super::*;
     use crate::cuts::cut::VertexCuts;
-    use crate::cuts::samples::{sample_radiance, EnvSamples};
+    use crate::cuts::samples::{sample_power, EnvSamples};
     use relight_scene::scene::Environment;
     use relight_sphere::EnvMap;
 
@@ -178,12 +178,7 @@ mod tests {
             let s = if d.dot(sun) > 0.995 { 500.0 } else { 0.0 };
             Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y.max(0.0)) + Vec3::splat(s)
         });
-        let l = sample_radiance(&s, &Environment::new(map)).unwrap();
-        let power = l
-            .iter()
-            .zip(&s.solid_angles)
-            .map(|(&l, &w)| l * w)
-            .collect();
+        let power = sample_power(&s, &Environment::new(map)).unwrap();
         (s, t, power)
     }
 

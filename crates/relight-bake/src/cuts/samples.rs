@@ -129,6 +129,20 @@ pub fn voronoi_solid_angles(dirs: &[Vec3], dense: usize) -> Vec<f32> {
     counts.iter().map(|&c| (c as f64 * w) as f32).collect()
 }
 
+/// Power of every light sample under `env`: its radiance ([`sample_radiance`]) times its
+/// solid angle, what the light tree's illumination cut sums (sec. 4.2).
+///
+/// # Errors
+/// As [`sample_radiance`].
+pub fn sample_power(samples: &EnvSamples, env: &Environment) -> Result<Vec<Vec3>, CutsError> {
+    let radiance = sample_radiance(samples, env)?;
+    Ok(radiance
+        .iter()
+        .zip(&samples.solid_angles)
+        .map(|(&l, &w)| l * w)
+        .collect())
+}
+
 /// Radiance of every light sample under `env` (world frame: the environment's rotation and
 /// scale applied): the quadrature-weighted mean of the texels whose centre lies in the
 /// sample's Voronoi cell, or the map's value at the sample's direction for a cell holding no

@@ -27,7 +27,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
 use relight_bake::cuts::merge::{merge_cuts, shade, CutKeys};
-use relight_bake::cuts::samples::{sample_radiance, EnvSamples, DEFAULT_SAMPLES};
+use relight_bake::cuts::samples::{sample_power, sample_radiance, EnvSamples, DEFAULT_SAMPLES};
 use relight_bake::cuts::tree::{LightTree, DEFAULT_BETA, DEFAULT_K, DEFAULT_VERTEX_CLUSTERS};
 use relight_bake::cuts::visibility::{CutFunction, CutParams, Scratch, VisibilitySampler};
 use relight_bake::BakeError;
@@ -55,6 +55,29 @@ pub(super) fn sky_with_sun() -> Environment {
     }))
 }
 
+/// The cuts benches' mesh: `bunny.obj` (or `--bake-mesh`), else a procedural sphere on a
+/// plane.
+///
+/// # Errors
+/// A mesh that cannot be read.
+pub(super) fn bunny_or_sphere(
+    bake_mesh: &Option<PathBuf>,
+    data: &Option<PathBuf>,
+) -> Result<(String, TriMesh)> {
+    Ok(
+        match super::shared_mesh(bake_mesh, data, "data/meshes/bunny.obj")? {
+            Some(x) => x,
+            None => {
+                eprintln!("bench: no bunny.obj: using a procedural sphere on a plane");
+                let mut m =
+                    relight_scene::shapes::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
+                m.append(&relight_scene::shapes::ground_plane(Vec3::ZERO, 4.0, 64), 0);
+                ("procedural sphere + plane".into(), m)
+            }
+        },
+    )
+}
+
 /// The sections: the bake (samples, tree, cuts vs rays, extrapolation) and the light cut.
 ///
 /// # Errors
@@ -64,15 +87,7 @@ pub(super) fn sections(
     data: &Option<PathBuf>,
     quick: bool,
 ) -> Result<Vec<Section>> {
-    let (name, mesh) = match super::shared_mesh(bake_mesh, data, "data/meshes/bunny.obj")? {
-        Some(x) => x,
-        None => {
-            eprintln!("bench: no bunny.obj: using a procedural sphere on a plane");
-            let mut m = relight_scene::shapes::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
-            m.append(&relight_scene::shapes::ground_plane(Vec3::ZERO, 4.0, 64), 0);
-            ("procedural sphere + plane".into(), m)
-        }
-    };
+    let (name, mesh) = bunny_or_sphere(bake_mesh, data)?;
     let err = |e: BakeError| MethodError::from(e);
     let lights = DEFAULT_SAMPLES;
     let t0 = Instant::now();
@@ -157,12 +172,7 @@ pub(super) fn sections(
     let radiance_ms = median_ms(3, || {
         std::hint::black_box(sample_radiance(&samples, &env).ok());
     });
-    let radiance = sample_radiance(&samples, &env).map_err(|e| err(e.into()))?;
-    let power: Vec<Vec3> = radiance
-        .iter()
-        .zip(&samples.solid_angles)
-        .map(|(&l, &w)| l * w)
-        .collect();
+    let power = sample_power(&samples, &env).map_err(|e| err(e.into()))?;
     let mut lc = Section::new(
         format!("Illumination cut: {lights} lights, sky + sun, sigma {DEFAULT_LIGHT_SIGMA}"),
         &[

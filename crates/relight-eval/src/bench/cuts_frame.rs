@@ -16,7 +16,7 @@ use super::{median, process_cpu_ms, Section};
 use crate::Result;
 use glam::Vec3;
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA, LIGHT_CUT_BUDGETS};
-use relight_bake::cuts::samples::sample_radiance;
+use relight_bake::cuts::samples::sample_power;
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::{bake_range, CutsBakeSettings};
 use relight_method::MethodError;
@@ -41,16 +41,7 @@ pub(super) fn section(
     data: &Option<PathBuf>,
     quick: bool,
 ) -> Result<Section> {
-    let (name, mesh) = match super::shared_mesh(bake_mesh, data, "data/meshes/bunny.obj")? {
-        Some(x) => x,
-        None => {
-            eprintln!("bench: no bunny.obj: using a procedural sphere on a plane");
-            let mut m =
-                relight_scene::shapes::uv_sphere(glam::Vec3::new(0.0, 0.5, 0.0), 0.5, 96, 192);
-            m.append(&relight_scene::shapes::ground_plane(Vec3::ZERO, 4.0, 64), 0);
-            ("procedural sphere + plane".into(), m)
-        }
-    };
+    let (name, mesh) = super::cuts_bake::bunny_or_sphere(bake_mesh, data)?;
     let (lo, hi) = mesh.bounds().expect("a non-empty mesh");
     let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
     let eye = centre + Vec3::new(0.3, 0.4, 1.0).normalize() * radius * 2.6;
@@ -108,12 +99,7 @@ pub(super) fn section(
             "bench: cuts bake ({function:?}) {:.1} s",
             t0.elapsed().as_secs_f64()
         );
-        let radiance = sample_radiance(&bake.samples, &env).map_err(bad)?;
-        let power: Vec<Vec3> = radiance
-            .iter()
-            .zip(&bake.samples.solid_angles)
-            .map(|(&l, &w)| l * w)
-            .collect();
+        let power = sample_power(&bake.samples, &env).map_err(bad)?;
         for material in materials {
             let shader = CutsShader::new(
                 &mesh,

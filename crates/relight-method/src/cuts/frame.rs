@@ -3,9 +3,8 @@
 
 use super::CutsBaked;
 use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
-use glam::Vec3;
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA};
-use relight_bake::cuts::samples::sample_radiance;
+use relight_bake::cuts::samples::sample_power;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
 use relight_scene::camera::Camera;
@@ -97,14 +96,9 @@ impl Frame for CutsFrame<'_> {
         let t0 = Instant::now();
         let samples = &self.baked.bake.samples;
         let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
-        let radiance = sample_radiance(samples, env).map_err(bad)?;
+        let power = sample_power(samples, env).map_err(bad)?;
         let environment_ms = ms_since(t0);
         let t1 = Instant::now();
-        let power: Vec<Vec3> = radiance
-            .iter()
-            .zip(&samples.solid_angles)
-            .map(|(&l, &w)| l * w)
-            .collect();
         let light = LightCut::build(
             &self.baked.bake.tree,
             &power,
