@@ -82,7 +82,7 @@ impl<'a> CutsShader<'a> {
         let material = self.materials[self.mesh.material_ids[f.tri as usize] as usize];
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
-        shade(&self.bake.tree, light, cuts, f.bary, |w| {
+        shade(light, cuts, f.bary, |w| {
             self.brdf(&material, wi, frame.to_local(w))
         })
     }
@@ -298,7 +298,7 @@ impl TriangleCut {
             if q == [0; 3] || power == Vec3::ZERO {
                 return;
             }
-            let dir = shader.bake.tree.direction(node.index);
+            let dir = light.direction(node.index);
             for j in 0..3 {
                 let v = dequantise(q[j]);
                 sums[j] += power * v;

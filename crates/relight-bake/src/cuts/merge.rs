@@ -18,7 +18,6 @@
 
 use super::cut::{dequantise, CutRef};
 use super::light_cut::LightCut;
-use super::tree::LightTree;
 use glam::Vec3;
 
 /// The part of a cut the traversal reads: post-order indices (increasing) and leftmost
@@ -147,10 +146,9 @@ pub fn interpolate<const N: usize>(
 /// One pixel of Eq. 5 with per-pixel interpolation (sec. 4.2): the light cut, three vertex
 /// visibility cuts interpolated with barycentric weights `bary`, and the BRDF `brdf(w)`
 /// (without the cosine, which the visibility holds) sampled at each merged cluster's
-/// direction ([`LightTree::direction`]), all in one traversal:
-/// `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`.
+/// direction ([`LightCut::direction`]: its lights' luminance-weighted mean direction), all in
+/// one traversal: `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`.
 pub fn shade(
-    tree: &LightTree,
     light: &LightCut,
     vertices: [CutRef<'_>; 3],
     bary: [f32; 3],
@@ -169,7 +167,7 @@ pub fn shade(
             + bary[2] * dequantise(vertices[2].value[pos[3]]);
         if v > 0.0 {
             let l = light.value[pos[0]] * node.leaves() as f32;
-            sum += l * v * brdf(tree.direction(node.index));
+            sum += l * v * brdf(light.direction(node.index));
         }
     });
     sum

@@ -293,7 +293,7 @@ fn shade_matches_slow_reference_and_converges_to_exact() {
     for (sigma, budget) in [(1.0f32, 256usize), (2.0, 128), (0.0, 1_000_000)] {
         let vc = vertex_cuts(&t, &fs, sigma);
         let lc = LightCut::build(&t, &power, sigma, budget).unwrap();
-        let fast = shade(&t, &lc, [vc.cut(0), vc.cut(1), vc.cut(2)], bary, brdf);
+        let fast = shade(&lc, [vc.cut(0), vc.cut(1), vc.cut(2)], bary, brdf);
         // Slow: every leaf takes each cut's containing node's mean and the BRDF at the
         // deepest of those nodes.
         let find = |index: &[u32], rank: u32| {
@@ -317,7 +317,7 @@ fn shade_matches_slow_reference_and_converges_to_exact() {
                 v += b * dequantise(c.value[k]);
             }
             if v > 0.0 {
-                slow += lc.value[li] * v * brdf(t.direction(deepest));
+                slow += lc.value[li] * v * brdf(lc.direction(deepest));
             }
         }
         // f32 sums over 2048 leaves vs over the merged clusters: relative 1e-4.
