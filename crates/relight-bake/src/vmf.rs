@@ -30,9 +30,13 @@
 //! adaptive angular and spatial refinement of section 4 is not implemented yet).
 
 pub mod bake;
+pub mod interp;
 pub mod material_lobes;
 pub mod slice;
 
-pub use bake::{bake, bake_vertices, InvalidVmfBake, VmfBake, VmfBakeSettings};
+pub use bake::{
+    bake, bake_vertices, view_counts, views_of_level, InvalidVmfBake, VmfBake, VmfBakeSettings,
+};
+pub use interp::{blend_lobes, blend_slices, slice_distance, ViewTable};
 pub use material_lobes::{MaterialLobes, Term};
 pub use slice::{PathClass, SliceSettings, TransferSlice};

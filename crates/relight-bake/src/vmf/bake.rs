@@ -11,7 +11,8 @@
 //! level 1 gives 17).
 //!
 //! # Layout and determinism
-//! `slices[x * view_count + v]` (vertex-major). The slice of vertex `x` and view `v` draws
+//! Slices are stored vertex after vertex ([`VmfBake`]); in a fixed-level bake that is
+//! `slices[x * view_count + v]`. The slice of vertex `x` and view `v` draws
 //! its random numbers from `Rng::new(seed, x * view_count + v)` only ([`trace_slice`]), so a
 //! bake depends on the seed, never on the threads. A vertex's point is its position, its
 //! normalised shading normal, its area-weighted geometric normal
@@ -126,24 +127,51 @@ impl VmfBakeSettings {
     /// # Panics
     /// Debug builds assert a valid level.
     pub fn views(&self) -> Vec<Vec3> {
-        debug_assert!(self.view_level <= MAX_VIEW_LEVEL);
-        Icosphere::new(1 << self.view_level)
-            .vertices()
-            .iter()
-            .copied()
-            .filter(|v| v.z > 0.0)
-            .collect()
+        views_of_level(self.view_level)
+    }
+
+    /// The lowest and highest view level a vertex of this bake may have: both
+    /// `view_level` for a fixed-level bake.
+    pub fn level_range(&self) -> (u32, u32) {
+        (self.view_level, self.view_level)
     }
 }
 
-/// A vMF bake: one transfer slice per vertex and view (layout in the module docs).
+/// The views of icosahedral level `level` (local frame, unit, `z > 0`, in [`Icosphere`]
+/// vertex order; module docs).
+///
+/// # Panics
+/// Debug builds assert `level <= MAX_VIEW_LEVEL`.
+pub fn views_of_level(level: u32) -> Vec<Vec3> {
+    debug_assert!(level <= MAX_VIEW_LEVEL);
+    Icosphere::new(1 << level)
+        .vertices()
+        .iter()
+        .copied()
+        .filter(|v| v.z > 0.0)
+        .collect()
+}
+
+/// Number of views of icosahedral level `level` ([`views_of_level`]), for every level up
+/// to [`MAX_VIEW_LEVEL`] (index = level).
+pub fn view_counts() -> [usize; MAX_VIEW_LEVEL as usize + 1] {
+    std::array::from_fn(|l| views_of_level(l as u32).len())
+}
+
+/// A vMF bake of some vertices (all of a mesh, or a part of a sharded bake): each vertex has
+/// its own icosahedral level of views (section 4.2; the fixed-level bake gives every vertex
+/// `settings.view_level`) and one transfer slice per view of that level, in the order of
+/// [`views_of_level`]. Rows are stored flat: the slices of the `i`-th vertex of the bake are
+/// `slices[offsets[i]..offsets[i + 1]]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VmfBake {
     /// The settings it was baked with.
     pub settings: VmfBakeSettings,
-    /// The views (local frame, unit, `z > 0`).
-    pub views: Vec<Vec3>,
-    /// `vertex_count * views.len()` slices, vertex-major.
+    /// The icosahedral level of each vertex's views, `<= settings.view_level`.
+    pub levels: Vec<u8>,
+    /// `levels.len() + 1` offsets into `slices`, from 0, non-decreasing.
+    pub offsets: Vec<usize>,
+    /// The slices, vertex after vertex.
     pub slices: Vec<TransferSlice>,
 }
 
@@ -155,21 +183,41 @@ pub struct InvalidVmfBake(pub String);
 impl VmfBake {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
-        self.slices.len().checked_div(self.views.len()).unwrap_or(0)
+        self.levels.len()
     }
 
-    /// The slice of vertex `x` and view `v`.
+    /// The slices of the `x`-th vertex of the bake, in the order of
+    /// `views_of_level(levels[x])`.
+    ///
+    /// # Panics
+    /// If `x` is out of range.
+    pub fn vertex_slices(&self, x: usize) -> &[TransferSlice] {
+        &self.slices[self.offsets[x]..self.offsets[x + 1]]
+    }
+
+    /// The slice of vertex `x` and view `v` (of its level).
     ///
     /// # Panics
     /// If `x` or `v` is out of range.
     pub fn slice(&self, x: usize, v: usize) -> &TransferSlice {
-        assert!(v < self.views.len(), "view {v} of {}", self.views.len());
-        &self.slices[x * self.views.len() + v]
+        let s = self.vertex_slices(x);
+        assert!(v < s.len(), "view {v} of {}", s.len());
+        &s[v]
     }
 
-    /// Check every invariant: valid settings, the views of the level, one slice per vertex
-    /// and view, every lobe with a unit axis, a finite `kappa` in `[0, kappa_max]` and a
-    /// finite non-negative amplitude.
+    /// Append the vertices of `other` (a later part of the same bake) after these.
+    pub fn append(&mut self, other: VmfBake) {
+        let base = self.slices.len();
+        self.levels.extend_from_slice(&other.levels);
+        self.offsets
+            .extend(other.offsets.iter().skip(1).map(|&o| o + base));
+        self.slices.extend(other.slices);
+    }
+
+    /// Check every invariant: valid settings, one level per vertex within the settings'
+    /// (all equal to `view_level` unless the bake is adaptive), offsets from 0 that give each
+    /// vertex as many slices as its level has views, every lobe with a unit axis, a finite
+    /// `kappa` in `[0, kappa_max]` and a finite non-negative amplitude.
     ///
     /// # Errors
     /// The first invariant that fails.
@@ -178,39 +226,47 @@ impl VmfBake {
         if let Err(e) = self.settings.validate() {
             return err(e.to_string());
         }
-        if self.views != self.settings.views() {
+        if self.offsets.len() != self.levels.len() + 1 || self.offsets[0] != 0 {
             return err(format!(
-                "{} views are not those of level {}",
-                self.views.len(),
-                self.settings.view_level
+                "{} offsets for {} vertices (need one more, from 0)",
+                self.offsets.len(),
+                self.levels.len()
             ));
         }
-        if self.views.is_empty() || !self.slices.len().is_multiple_of(self.views.len()) {
+        if self.offsets[self.levels.len()] != self.slices.len() {
             return err(format!(
-                "{} slices for {} views",
-                self.slices.len(),
-                self.views.len()
+                "offsets end at {} but there are {} slices",
+                self.offsets[self.levels.len()],
+                self.slices.len()
             ));
+        }
+        let counts = view_counts();
+        let (lo, hi) = self.settings.level_range();
+        for (x, &l) in self.levels.iter().enumerate() {
+            if !(lo..=hi).contains(&u32::from(l)) {
+                return err(format!("vertex {x}: view level {l} is not in {lo}..={hi}"));
+            }
+            let (a, b) = (self.offsets[x], self.offsets[x + 1]);
+            if b < a || b - a != counts[l as usize] {
+                return err(format!(
+                    "vertex {x}: {} slices for the {} views of level {l}",
+                    b.wrapping_sub(a) as isize,
+                    counts[l as usize]
+                ));
+            }
         }
         for (i, s) in self.slices.iter().enumerate() {
             for t in Term::ALL {
                 for c in PathClass::ALL {
                     let l = s.lobe(t, c);
-                    let (x, v) = (i / self.views.len(), i % self.views.len());
                     if (l.axis.length() - 1.0).abs() > 1e-4 {
-                        return err(format!("vertex {x} view {v} {t:?} {c:?}: axis {}", l.axis));
+                        return err(format!("slice {i} {t:?} {c:?}: axis {}", l.axis));
                     }
                     if !(l.kappa >= 0.0 && l.kappa <= self.settings.kappa_max) {
-                        return err(format!(
-                            "vertex {x} view {v} {t:?} {c:?}: kappa {}",
-                            l.kappa
-                        ));
+                        return err(format!("slice {i} {t:?} {c:?}: kappa {}", l.kappa));
                     }
                     if !l.amplitude.is_finite() || l.amplitude.min_element() < 0.0 {
-                        return err(format!(
-                            "vertex {x} view {v} {t:?} {c:?}: amplitude {}",
-                            l.amplitude
-                        ));
+                        return err(format!("slice {i} {t:?} {c:?}: amplitude {}", l.amplitude));
                     }
                 }
             }
@@ -237,24 +293,19 @@ pub fn bake(
     caster: &dyn RayCaster,
     settings: &VmfBakeSettings,
 ) -> Result<VmfBake, BakeError> {
-    let slices = bake_vertices(
+    bake_vertices(
         mesh,
         materials,
         vertex_materials,
         caster,
         settings,
         0..mesh.vertex_count(),
-    )?;
-    Ok(VmfBake {
-        settings: *settings,
-        views: settings.views(),
-        slices,
-    })
+    )
 }
 
-/// The slices of the vertices `vertices` only (vertex-major, `vertices.len() * views`), as
-/// [`bake`] computes them: each vertex is seeded by its index in the whole mesh, so the parts
-/// of a sharded bake concatenate to the whole bake exactly.
+/// The bake of the vertices `vertices` only, as [`bake`] computes them: each vertex is seeded
+/// by its index in the whole mesh, so the parts of a sharded bake concatenate
+/// ([`VmfBake::append`]) to the whole bake exactly.
 ///
 /// # Errors
 /// As [`bake`], and [`BakeError::Settings`] for a range outside the mesh.
@@ -265,7 +316,7 @@ pub fn bake_vertices(
     caster: &dyn RayCaster,
     settings: &VmfBakeSettings,
     vertices: Range<usize>,
-) -> Result<Vec<TransferSlice>, BakeError> {
+) -> Result<VmfBake, BakeError> {
     settings.validate()?;
     if vertices.start > vertices.end || vertices.end > mesh.vertex_count() {
         return Err(BakeError::Settings(format!(
@@ -332,7 +383,19 @@ pub fn bake_vertices(
             .collect()
     })?;
     progress.finish_and_clear();
-    Ok(per_vertex_slices.into_iter().flatten().collect())
+    let levels = vec![settings.view_level as u8; per_vertex_slices.len()];
+    let offsets = std::iter::once(0)
+        .chain(per_vertex_slices.iter().scan(0, |o, s| {
+            *o += s.len();
+            Some(*o)
+        }))
+        .collect();
+    Ok(VmfBake {
+        settings: *settings,
+        levels,
+        offsets,
+        slices: per_vertex_slices.into_iter().flatten().collect(),
+    })
 }
 
 #[cfg(test)]
