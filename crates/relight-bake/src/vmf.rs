@@ -32,6 +32,7 @@
 pub mod bake;
 pub mod interp;
 pub mod material_lobes;
+pub mod refine;
 pub mod slice;
 
 pub use bake::{

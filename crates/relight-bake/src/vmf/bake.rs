@@ -1,5 +1,8 @@
-//! The vMF bake over views (paper sections 4.2 and 6.1, without the adaptive refinement):
-//! for every vertex, one [`TransferSlice`] per view of a fixed icosahedral level.
+//! The vMF bake over views (paper sections 4.2 and 6.1): for every vertex, one
+//! [`TransferSlice`] per view of an icosahedral level: `view_level` for every vertex, or with
+//! `angular_threshold > 0` the level the adaptive angular refinement of section 4.2 chose for
+//! it between `min_view_level` and `view_level` ([`super::refine`]). The adaptive spatial
+//! refinement (section 4.3) is not implemented.
 //!
 //! # Views
 //! The views are the vertices of the geodesic icosahedron of subdivision level `view_level`
@@ -12,18 +15,19 @@
 //!
 //! # Layout and determinism
 //! Slices are stored vertex after vertex ([`VmfBake`]); in a fixed-level bake that is
-//! `slices[x * view_count + v]`. The slice of vertex `x` and view `v` draws
-//! its random numbers from `Rng::new(seed, x * view_count + v)` only ([`trace_slice`]), so a
-//! bake depends on the seed, never on the threads. A vertex's point is its position, its
+//! `slices[x * view_count + v]`. The slice of vertex `x` and view `v` of level `l` draws its
+//! random numbers from `Rng::new(seed, slice_stream(x, l, v))` only ([`super::slice::trace_slice`],
+//! [`slice_stream`]), so a bake depends on the seed, never on the threads. A vertex's point is its position, its
 //! normalised shading normal, its area-weighted geometric normal
 //! ([`crate::transport::vertex_geometric_normals`]) and its material
 //! ([`crate::sg::transport::vertex_materials`] unless given per vertex). A part of the
 //! vertices ([`bake_vertices`]) is therefore exactly that part of the whole bake (sharding).
 
+use super::refine::{level_view, slice_stream, Refiner, LEVEL_VIEWS};
 use super::slice::{
-    trace_slice, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
+    trace_slice_with, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
 };
-use super::Term;
+use super::{MaterialLobes, Term};
 use crate::transport::{
     check_mesh, check_mesh_geometry, progress_bar, vertex_geometric_normals, with_threads,
 };
@@ -37,6 +41,8 @@ use relight_sphere::icosphere::Icosphere;
 use relight_sphere::vmf::KappaEstimate;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::OnceLock;
 
 /// Largest icosahedral level of the views (the paper's maximum, section 6.1).
 pub const MAX_VIEW_LEVEL: u32 = 5;
@@ -51,9 +57,21 @@ pub const MAX_VIEW_LEVEL: u32 = 5;
 )]
 pub struct VmfBakeSettings {
     /// Icosahedral subdivision level of the views, `0..=5` (frequency `2^level`; level 1
-    /// has 42 vertices on the sphere, 17 of them strictly above the horizon).
+    /// has 42 vertices on the sphere, 17 of them strictly above the horizon): every vertex's
+    /// level, or with `--angular-threshold` the finest level a vertex may reach.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().view_level))]
     pub view_level: u32,
+    /// Adaptive angular refinement (paper section 4.2): refine a vertex's views level by level
+    /// from `--min-view-level` up to `--view-level` until the mean L2 distance (1/sr) between
+    /// the next level's slices and their interpolation from the current level falls below this
+    /// threshold. 0: off, every vertex at `--view-level`.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().angular_threshold))]
+    pub angular_threshold: f32,
+    /// The coarsest view level of the adaptive refinement, `0..=view_level`.
+    #[serde(default = "default_min_view_level")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().min_view_level))]
+    pub min_view_level: u32,
     /// Paths per (vertex, view) slice.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().paths))]
     pub paths: u32,
@@ -79,13 +97,21 @@ pub struct VmfBakeSettings {
     pub progress: bool,
 }
 
+/// The default coarsest level of the adaptive refinement: level 1 (17 views; level 0 has only
+/// 4 views above the horizon).
+fn default_min_view_level() -> u32 {
+    1
+}
+
 impl Default for VmfBakeSettings {
-    /// Level 1 views, the slice defaults of [`SliceSettings::default`] (1024 paths, one
+    /// Level 1 views, no adaptive refinement (coarsest level 1 when it is on), the slice defaults of [`SliceSettings::default`] (1024 paths, one
     /// bounce, 1024 material samples, `kappa_max = 1e4`), seed 0, all cores, no progress bar.
     fn default() -> Self {
         let s = SliceSettings::default();
         VmfBakeSettings {
             view_level: 1,
+            angular_threshold: 0.0,
+            min_view_level: default_min_view_level(),
             paths: s.paths,
             max_bounces: s.max_bounces,
             material_samples: s.material_samples,
@@ -119,6 +145,18 @@ impl VmfBakeSettings {
                 self.view_level
             )));
         }
+        if !(self.angular_threshold.is_finite() && self.angular_threshold >= 0.0) {
+            return Err(BakeError::Settings(format!(
+                "angular_threshold {} must be finite and >= 0",
+                self.angular_threshold
+            )));
+        }
+        if self.angular_threshold > 0.0 && self.min_view_level > self.view_level {
+            return Err(BakeError::Settings(format!(
+                "min_view_level {} is above view_level {}",
+                self.min_view_level, self.view_level
+            )));
+        }
         self.slice_settings().validate()
     }
 
@@ -131,9 +169,14 @@ impl VmfBakeSettings {
     }
 
     /// The lowest and highest view level a vertex of this bake may have: both
-    /// `view_level` for a fixed-level bake.
+    /// `view_level` for a fixed-level bake, `min_view_level..=view_level` with adaptive
+    /// refinement.
     pub fn level_range(&self) -> (u32, u32) {
-        (self.view_level, self.view_level)
+        if self.angular_threshold > 0.0 {
+            (self.min_view_level, self.view_level)
+        } else {
+            (self.view_level, self.view_level)
+        }
     }
 }
 
@@ -345,11 +388,27 @@ pub fn bake_vertices(
         m.validate()
             .map_err(|e| BakeError::Scene(format!("material of vertex {v}: {e}")))?;
     }
-    let views = settings.views();
-    let nv = views.len();
+    let (lo, hi) = settings.level_range();
+    let nv = view_counts()[hi as usize];
     crate::check_memory(
         vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
     )?;
+    let refiner = Refiner::new(hi);
+    // Distinct materials, and one lazily fitted eq. 9 lobe pair per (material, level, view).
+    let mut palette: Vec<Material> = vec![];
+    let palette_index: Vec<usize> = per_vertex
+        .iter()
+        .map(|m| match palette.iter().position(|p| p == m) {
+            Some(i) => i,
+            None => {
+                palette.push(*m);
+                palette.len() - 1
+            }
+        })
+        .collect();
+    let lobe_cache: Vec<OnceLock<MaterialLobes>> = (0..palette.len() * LEVEL_VIEWS)
+        .map(|_| OnceLock::new())
+        .collect();
     let ng = vertex_geometric_normals(mesh);
     let scene = SliceScene {
         mesh,
@@ -358,7 +417,17 @@ pub fn bake_vertices(
     };
     let slice_settings = settings.slice_settings();
     let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
-    let per_vertex_slices: Vec<Vec<TransferSlice>> = with_threads(settings.threads, || {
+    // Refinement iterations so far: vertices that reached each level by refining.
+    let refined: Vec<AtomicU64> = (0..=hi).map(|_| AtomicU64::new(0)).collect();
+    let report = |progress: &indicatif::ProgressBar| {
+        if lo < hi {
+            let counts: Vec<String> = (lo + 1..=hi)
+                .map(|l| format!("L{l}:{}", refined[l as usize].load(Ordering::Relaxed)))
+                .collect();
+            progress.set_message(format!("vmf refined {}", counts.join(" ")));
+        }
+    };
+    let rows: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
         vertices
             .into_par_iter()
             .map(|x| {
@@ -368,24 +437,50 @@ pub fn bake_vertices(
                     geometric_normal: ng[x],
                     material: per_vertex[x],
                 };
-                let slices = views
-                    .iter()
-                    .enumerate()
-                    .map(|(v, &view)| {
-                        let stream = (x * nv + v) as u64;
-                        trace_slice(&scene, &point, view, &slice_settings, settings.seed, stream)
-                            .estimate(KappaEstimate::Banerjee, settings.kappa_max)
-                    })
-                    .collect();
+                let r = refiner.refine(
+                    lo,
+                    hi,
+                    settings.angular_threshold,
+                    |level, v, view| {
+                        let stream = slice_stream(x, level, v);
+                        // The eq. 9 lobes of this material and view, fitted once per bake.
+                        let slot = palette_index[x] * LEVEL_VIEWS + level_view(level, v);
+                        let lobes = lobe_cache[slot].get_or_init(|| {
+                            // (normalised as `trace_slice` does, so both give the same bits)
+                            MaterialLobes::fit(
+                                &point.material,
+                                view.normalize(),
+                                settings.material_samples,
+                            )
+                        });
+                        let lobes = (view.z > 0.0).then_some(lobes);
+                        trace_slice_with(
+                            &scene,
+                            &point,
+                            view,
+                            lobes,
+                            &slice_settings,
+                            settings.seed,
+                            stream,
+                        )
+                        .estimate(KappaEstimate::Banerjee, settings.kappa_max)
+                    },
+                    |level| {
+                        refined[level as usize].fetch_add(1, Ordering::Relaxed);
+                    },
+                );
                 progress.inc(1);
-                slices
+                if x % 16 == 0 {
+                    report(&progress);
+                }
+                (r.level as u8, r.slices)
             })
             .collect()
     })?;
     progress.finish_and_clear();
-    let levels = vec![settings.view_level as u8; per_vertex_slices.len()];
+    let levels = rows.iter().map(|(l, _)| *l).collect();
     let offsets = std::iter::once(0)
-        .chain(per_vertex_slices.iter().scan(0, |o, s| {
+        .chain(rows.iter().scan(0, |o, (_, s)| {
             *o += s.len();
             Some(*o)
         }))
@@ -394,7 +489,7 @@ pub fn bake_vertices(
         settings: *settings,
         levels,
         offsets,
-        slices: per_vertex_slices.into_iter().flatten().collect(),
+        slices: rows.into_iter().flat_map(|(_, s)| s).collect(),
     })
 }
 

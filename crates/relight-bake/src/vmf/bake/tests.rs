@@ -111,7 +111,7 @@ fn bake_is_valid_deterministic_and_equals_its_slices() {
             views[v],
             &s.slice_settings(),
             s.seed,
-            (x * nv + v) as u64,
+            crate::vmf::refine::slice_stream(x, s.view_level, v),
         );
         assert_eq!(*one.slice(x, v), direct);
     }
@@ -224,5 +224,50 @@ fn parts_of_a_bake_concatenate_to_the_whole() {
             bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r),
             Err(BakeError::Settings(_))
         ));
+    }
+}
+
+#[test]
+fn adaptive_bakes_are_valid_split_exactly_and_refuse_bad_levels() {
+    let (mesh, mats) = scene();
+    let caster = build_default(&mesh);
+    let s = VmfBakeSettings {
+        view_level: 2,
+        min_view_level: 0,
+        angular_threshold: 0.05,
+        ..small()
+    };
+    let whole = bake(&mesh, &mats, None, caster.as_ref(), &s).expect("bake");
+    whole.validate().expect("valid");
+    assert!(whole.levels.iter().all(|&l| l <= 2));
+    let n = mesh.vertex_count();
+    let mut parts = bake_vertices(&mesh, &mats, None, caster.as_ref(), &s, 0..10).unwrap();
+    parts.append(bake_vertices(&mesh, &mats, None, caster.as_ref(), &s, 10..n).unwrap());
+    assert!(parts == whole);
+    // A level outside min_view_level..=view_level is invalid.
+    let mut b = whole.clone();
+    let l = b.levels[0];
+    b.levels[0] = 3;
+    assert!(b.validate().is_err() || l == 3);
+    for (bad, name) in [
+        (
+            VmfBakeSettings {
+                min_view_level: 3,
+                ..s
+            },
+            "min_view_level",
+        ),
+        (
+            VmfBakeSettings {
+                angular_threshold: -1.0,
+                ..s
+            },
+            "angular_threshold",
+        ),
+    ] {
+        match bake(&mesh, &mats, None, caster.as_ref(), &bad) {
+            Err(BakeError::Settings(m)) => assert!(m.contains(name), "{m}"),
+            other => panic!("{name}: {other:?}"),
+        }
     }
 }
