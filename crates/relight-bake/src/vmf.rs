@@ -26,8 +26,10 @@
 //!   at `x` apart (the paper's `T_d` and `T_g`, eq. 3).
 //!
 //! Modules: [`material_lobes`] (eq. 9, the sampling density), [`mod@slice`] (eq. 13-15, a transfer
-//! slice from traced paths), [`mod@bake`] (slices of every vertex for a fixed level of views; the
-//! adaptive angular and spatial refinement of section 4 is not implemented yet).
+//! slice from traced paths), [`interp`] (eq. 6, slices between views or vertices),
+//! [`refine`] (section 4.2, adaptive angular refinement), [`mod@bake`] (the slices of every
+//! vertex for its level of views). The adaptive spatial refinement of section 4.3 is not
+//! implemented yet.
 
 pub mod bake;
 pub mod interp;

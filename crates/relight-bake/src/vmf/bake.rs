@@ -47,8 +47,8 @@ use std::sync::OnceLock;
 /// Largest icosahedral level of the views (the paper's maximum, section 6.1).
 pub const MAX_VIEW_LEVEL: u32 = 5;
 
-/// Settings of the vMF bake: what a `vmf` bundle will record (serde) and, with the `cli`
-/// feature, the options of a future `relight bake --method vmf`.
+/// Settings of the vMF bake: what a `vmf` bundle records (serde) and, with the `cli` feature,
+/// the options of `relight bake --method vmf`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
 #[cfg_attr(
