@@ -36,6 +36,7 @@ pub mod interp;
 pub mod material_lobes;
 pub mod refine;
 pub mod slice;
+pub mod subdivide;
 
 pub use bake::{
     bake, bake_vertices, view_counts, views_of_level, InvalidVmfBake, VmfBake, VmfBakeSettings,
