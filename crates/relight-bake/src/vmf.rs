@@ -36,6 +36,7 @@ pub mod interp;
 pub mod material_lobes;
 pub mod refine;
 pub mod slice;
+pub mod spatial;
 pub mod subdivide;
 
 pub use bake::{

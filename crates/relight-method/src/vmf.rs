@@ -46,7 +46,10 @@ impl Method for Vmf {
         Some("the vmf merge concatenates the parts' slices in memory (not streamed yet)")
     }
 
-    /// Vertices are independent: a range bakes exactly those rows of the whole bake.
+    /// Vertices are independent: a range bakes exactly those rows of the whole bake. With the
+    /// adaptive spatial refinement (`spatial_threshold > 0`, paper section 4.3) the bake
+    /// refines the mesh, which becomes the bundle's mesh; it couples neighbouring vertices, so
+    /// only a whole bake is accepted.
     fn bake(
         input: BakeInput,
         settings: &VmfBakeSettings,
@@ -62,22 +65,47 @@ impl Method for Vmf {
             threads: None,
             ..*settings
         };
-        let mut bake = relight_bake::vmf::bake_vertices(
-            &input.scene.mesh,
-            &input.scene.materials,
-            None,
-            caster.as_ref(),
-            &run,
-            range.clone(),
-        )?;
+        let mut scene = BakedScene::of(&input);
+        let mut bake = if settings.spatial_threshold > 0.0 {
+            if range != (0..n) {
+                return Err(MethodError::Settings(format!(
+                    "a vmf bake with spatial refinement (--spatial-threshold) cannot be baked in parts (vertices {range:?} of {n} asked: --shard, --checkpoint-vertices or --memory-limit): the refinement couples neighbouring vertices; bake it whole"
+                )));
+            }
+            let (bake, mesh, _) = relight_bake::vmf::spatial::bake_refined(
+                &input.scene.mesh,
+                &input.scene.materials,
+                None,
+                caster.as_ref(),
+                &run,
+            )?;
+            scene.mesh = mesh;
+            bake
+        } else {
+            relight_bake::vmf::bake_vertices(
+                &input.scene.mesh,
+                &input.scene.materials,
+                None,
+                caster.as_ref(),
+                &run,
+                range.clone(),
+            )?
+        };
         let recorded = VmfBakeSettings {
             progress: false,
             threads: None,
             ..*settings
         };
         bake.settings = recorded;
+        // A refined bake is whole, over the refined mesh.
+        let n = scene.mesh.vertex_count();
+        let range = if settings.spatial_threshold > 0.0 {
+            0..n
+        } else {
+            range
+        };
         Ok(VmfBaked {
-            scene: BakedScene::of(&input),
+            scene,
             bake,
             settings: recorded,
             record: BakeRecord::new(

@@ -72,6 +72,24 @@ pub struct VmfBakeSettings {
     #[serde(default = "default_min_view_level")]
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().min_view_level))]
     pub min_view_level: u32,
+    /// Adaptive spatial refinement (paper section 4.3): split triangles (1 to 4, at their
+    /// edges' midpoints) while the largest mean L2 distance (1/sr) between the transfer of
+    /// two of their vertices exceeds this threshold. 0: off, the scene's mesh as it is. The
+    /// refined mesh is stored in the bundle and rendered; such a bake cannot be sharded.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_threshold))]
+    pub spatial_threshold: f32,
+    /// Smallest area of a triangle the spatial refinement splits, as a fraction of the
+    /// input mesh's mean triangle area, in `(0, 1]` (1/64: at most three levels of splits
+    /// of an average triangle, forced splits of neighbours aside).
+    #[serde(default = "default_spatial_min_area")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_min_area))]
+    pub spatial_min_area: f32,
+    /// Triangles split per iteration of the spatial refinement, those of largest error first
+    /// (the paper: 200), at least 1.
+    #[serde(default = "default_spatial_batch")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_batch))]
+    pub spatial_batch: u32,
     /// Paths per (vertex, view) slice.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().paths))]
     pub paths: u32,
@@ -103,6 +121,16 @@ fn default_min_view_level() -> u32 {
     1
 }
 
+/// The default smallest area of a split triangle: 1/64 of the input's mean.
+fn default_spatial_min_area() -> f32 {
+    1.0 / 64.0
+}
+
+/// The default number of triangles split per iteration: the paper's 200 (section 6.1).
+fn default_spatial_batch() -> u32 {
+    200
+}
+
 impl Default for VmfBakeSettings {
     /// Level 1 views, no adaptive refinement (coarsest level 1 when it is on), the slice defaults of [`SliceSettings::default`] (1024 paths, one
     /// bounce, 1024 material samples, `kappa_max = 1e4`), seed 0, all cores, no progress bar.
@@ -112,6 +140,9 @@ impl Default for VmfBakeSettings {
             view_level: 1,
             angular_threshold: 0.0,
             min_view_level: default_min_view_level(),
+            spatial_threshold: 0.0,
+            spatial_min_area: default_spatial_min_area(),
+            spatial_batch: default_spatial_batch(),
             paths: s.paths,
             max_bounces: s.max_bounces,
             material_samples: s.material_samples,
@@ -150,6 +181,23 @@ impl VmfBakeSettings {
                 "angular_threshold {} must be finite and >= 0",
                 self.angular_threshold
             )));
+        }
+        if !(self.spatial_threshold.is_finite() && self.spatial_threshold >= 0.0) {
+            return Err(BakeError::Settings(format!(
+                "spatial_threshold {} must be finite and >= 0",
+                self.spatial_threshold
+            )));
+        }
+        if !(self.spatial_min_area > 0.0 && self.spatial_min_area <= 1.0) {
+            return Err(BakeError::Settings(format!(
+                "spatial_min_area {} is not in (0, 1]",
+                self.spatial_min_area
+            )));
+        }
+        if self.spatial_batch == 0 {
+            return Err(BakeError::Settings(
+                "spatial_batch must be at least 1".into(),
+            ));
         }
         if self.angular_threshold > 0.0 && self.min_view_level > self.view_level {
             return Err(BakeError::Settings(format!(
@@ -360,13 +408,53 @@ pub fn bake_vertices(
     settings: &VmfBakeSettings,
     vertices: Range<usize>,
 ) -> Result<VmfBake, BakeError> {
-    settings.validate()?;
+    let per_vertex = checked_vertex_materials(mesh, materials, vertex_materials, settings)?;
     if vertices.start > vertices.end || vertices.end > mesh.vertex_count() {
         return Err(BakeError::Settings(format!(
             "vertex range {vertices:?} is not within 0..{}",
             mesh.vertex_count()
         )));
     }
+    let (_, hi) = settings.level_range();
+    let nv = view_counts()[hi as usize];
+    crate::check_memory(
+        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
+    )?;
+    let ng = vertex_geometric_normals(mesh);
+    let baker = PointBaker::new(mesh, caster, &per_vertex, settings);
+    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
+    let rows: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
+        vertices
+            .into_par_iter()
+            .map(|x| {
+                let point = SurfacePoint {
+                    position: mesh.positions[x],
+                    normal: mesh.normals[x].normalize_or_zero(),
+                    geometric_normal: ng[x],
+                    material: per_vertex[x],
+                };
+                let row = baker.bake_point(x, &point);
+                progress.inc(1);
+                if x % 16 == 0 {
+                    baker.report(&progress);
+                }
+                row
+            })
+            .collect()
+    })?;
+    progress.finish_and_clear();
+    Ok(VmfBake::from_rows(*settings, rows))
+}
+
+/// The per-vertex materials of a bake (given, or those of each vertex's first triangle),
+/// after checking the settings, the mesh and every material.
+pub(crate) fn checked_vertex_materials(
+    mesh: &TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    settings: &VmfBakeSettings,
+) -> Result<Vec<Material>, BakeError> {
+    settings.validate()?;
     let per_vertex = match vertex_materials {
         Some(m) => {
             check_mesh_geometry(mesh)?;
@@ -388,109 +476,132 @@ pub fn bake_vertices(
         m.validate()
             .map_err(|e| BakeError::Scene(format!("material of vertex {v}: {e}")))?;
     }
-    let (lo, hi) = settings.level_range();
-    let nv = view_counts()[hi as usize];
-    crate::check_memory(
-        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
-    )?;
-    let refiner = Refiner::new(hi);
-    // Distinct materials, and one lazily fitted eq. 9 lobe pair per (material, level, view).
-    let mut palette: Vec<Material> = vec![];
-    let palette_index: Vec<usize> = per_vertex
-        .iter()
-        .map(|m| match palette.iter().position(|p| p == m) {
-            Some(i) => i,
-            None => {
+    Ok(per_vertex)
+}
+
+impl VmfBake {
+    /// A bake of `settings` from per-vertex rows (level, slices).
+    pub(crate) fn from_rows(
+        settings: VmfBakeSettings,
+        rows: Vec<(u8, Vec<TransferSlice>)>,
+    ) -> Self {
+        let levels = rows.iter().map(|(l, _)| *l).collect();
+        let offsets = std::iter::once(0)
+            .chain(rows.iter().scan(0, |o, (_, s)| {
+                *o += s.len();
+                Some(*o)
+            }))
+            .collect();
+        VmfBake {
+            settings,
+            levels,
+            offsets,
+            slices: rows.into_iter().flat_map(|(_, s)| s).collect(),
+        }
+    }
+}
+
+/// What baking one point needs, shared by all points of a bake: the scene, the view tables,
+/// the eq. 9 lobes fitted once per (material, level, view), and the refinement counts shown
+/// by the progress bar.
+pub(crate) struct PointBaker<'a> {
+    scene: SliceScene<'a>,
+    refiner: Refiner,
+    palette: Vec<Material>,
+    lobe_cache: Vec<OnceLock<MaterialLobes>>,
+    settings: VmfBakeSettings,
+    /// Vertices that reached each level by refining.
+    refined: Vec<AtomicU64>,
+}
+
+impl<'a> PointBaker<'a> {
+    /// The baker of points whose materials are among `per_vertex` (paths scatter by them).
+    pub(crate) fn new(
+        mesh: &'a TriMesh,
+        caster: &'a dyn RayCaster,
+        per_vertex: &'a [Material],
+        settings: &VmfBakeSettings,
+    ) -> Self {
+        let (_, hi) = settings.level_range();
+        let mut palette: Vec<Material> = vec![];
+        for m in per_vertex {
+            if !palette.contains(m) {
                 palette.push(*m);
-                palette.len() - 1
             }
-        })
-        .collect();
-    let lobe_cache: Vec<OnceLock<MaterialLobes>> = (0..palette.len() * LEVEL_VIEWS)
-        .map(|_| OnceLock::new())
-        .collect();
-    let ng = vertex_geometric_normals(mesh);
-    let scene = SliceScene {
-        mesh,
-        caster,
-        vertex_materials: &per_vertex,
-    };
-    let slice_settings = settings.slice_settings();
-    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
-    // Refinement iterations so far: vertices that reached each level by refining.
-    let refined: Vec<AtomicU64> = (0..=hi).map(|_| AtomicU64::new(0)).collect();
-    let report = |progress: &indicatif::ProgressBar| {
+        }
+        PointBaker {
+            scene: SliceScene {
+                mesh,
+                caster,
+                vertex_materials: per_vertex,
+            },
+            refiner: Refiner::new(hi),
+            lobe_cache: (0..palette.len() * LEVEL_VIEWS)
+                .map(|_| OnceLock::new())
+                .collect(),
+            palette,
+            settings: *settings,
+            refined: (0..=hi).map(|_| AtomicU64::new(0)).collect(),
+        }
+    }
+
+    /// The refiner (view tables).
+    pub(crate) fn refiner(&self) -> &Refiner {
+        &self.refiner
+    }
+
+    /// The level and slices of vertex `x` (its index seeds its streams) at `point`, whose
+    /// material must be one of the baker's.
+    pub(crate) fn bake_point(&self, x: usize, point: &SurfacePoint) -> (u8, Vec<TransferSlice>) {
+        let settings = &self.settings;
+        let (lo, hi) = settings.level_range();
+        let slice_settings = settings.slice_settings();
+        let material = self
+            .palette
+            .iter()
+            .position(|p| *p == point.material)
+            .expect("a material of the bake");
+        let r = self.refiner.refine(
+            lo,
+            hi,
+            settings.angular_threshold,
+            |level, v, view| {
+                let stream = slice_stream(x, level, v);
+                // The eq. 9 lobes of this material and view, fitted once per bake.
+                let slot = material * LEVEL_VIEWS + level_view(level, v);
+                let lobes = self.lobe_cache[slot].get_or_init(|| {
+                    // (normalised as `trace_slice` does, so both give the same bits)
+                    MaterialLobes::fit(&point.material, view.normalize(), settings.material_samples)
+                });
+                let lobes = (view.z > 0.0).then_some(lobes);
+                trace_slice_with(
+                    &self.scene,
+                    point,
+                    view,
+                    lobes,
+                    &slice_settings,
+                    settings.seed,
+                    stream,
+                )
+                .estimate(KappaEstimate::Banerjee, settings.kappa_max)
+            },
+            |level| {
+                self.refined[level as usize].fetch_add(1, Ordering::Relaxed);
+            },
+        );
+        (r.level as u8, r.slices)
+    }
+
+    /// Show the refinement counts so far in `progress`'s message.
+    pub(crate) fn report(&self, progress: &indicatif::ProgressBar) {
+        let (lo, hi) = self.settings.level_range();
         if lo < hi {
             let counts: Vec<String> = (lo + 1..=hi)
-                .map(|l| format!("L{l}:{}", refined[l as usize].load(Ordering::Relaxed)))
+                .map(|l| format!("L{l}:{}", self.refined[l as usize].load(Ordering::Relaxed)))
                 .collect();
             progress.set_message(format!("vmf refined {}", counts.join(" ")));
         }
-    };
-    let rows: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
-        vertices
-            .into_par_iter()
-            .map(|x| {
-                let point = SurfacePoint {
-                    position: mesh.positions[x],
-                    normal: mesh.normals[x].normalize_or_zero(),
-                    geometric_normal: ng[x],
-                    material: per_vertex[x],
-                };
-                let r = refiner.refine(
-                    lo,
-                    hi,
-                    settings.angular_threshold,
-                    |level, v, view| {
-                        let stream = slice_stream(x, level, v);
-                        // The eq. 9 lobes of this material and view, fitted once per bake.
-                        let slot = palette_index[x] * LEVEL_VIEWS + level_view(level, v);
-                        let lobes = lobe_cache[slot].get_or_init(|| {
-                            // (normalised as `trace_slice` does, so both give the same bits)
-                            MaterialLobes::fit(
-                                &point.material,
-                                view.normalize(),
-                                settings.material_samples,
-                            )
-                        });
-                        let lobes = (view.z > 0.0).then_some(lobes);
-                        trace_slice_with(
-                            &scene,
-                            &point,
-                            view,
-                            lobes,
-                            &slice_settings,
-                            settings.seed,
-                            stream,
-                        )
-                        .estimate(KappaEstimate::Banerjee, settings.kappa_max)
-                    },
-                    |level| {
-                        refined[level as usize].fetch_add(1, Ordering::Relaxed);
-                    },
-                );
-                progress.inc(1);
-                if x % 16 == 0 {
-                    report(&progress);
-                }
-                (r.level as u8, r.slices)
-            })
-            .collect()
-    })?;
-    progress.finish_and_clear();
-    let levels = rows.iter().map(|(l, _)| *l).collect();
-    let offsets = std::iter::once(0)
-        .chain(rows.iter().scan(0, |o, (_, s)| {
-            *o += s.len();
-            Some(*o)
-        }))
-        .collect();
-    Ok(VmfBake {
-        settings: *settings,
-        levels,
-        offsets,
-        slices: rows.into_iter().flat_map(|(_, s)| s).collect(),
-    })
+    }
 }
 
 #[cfg(test)]

@@ -271,3 +271,40 @@ fn a_frame_through_the_seam_renders() {
     });
     assert!(b.frame(&bad).is_err());
 }
+
+#[test]
+fn a_spatially_refined_bake_stores_its_mesh_renders_and_is_not_split() {
+    let s = VmfBakeSettings {
+        spatial_threshold: 0.05,
+        spatial_min_area: 0.25,
+        paths: 128,
+        ..settings()
+    };
+    let (b, input_vertices) = with_input(0.5, |input| {
+        let b: Baked = Vmf::bake(input, &s, 0..input.scene.mesh.vertex_count(), &ctx(false))
+            .unwrap()
+            .into();
+        (b, input.scene.mesh.vertex_count())
+    });
+    let v = vmf(&b);
+    assert!(v.scene.mesh.vertex_count() > input_vertices);
+    assert_eq!(v.bake.vertex_count(), v.scene.mesh.vertex_count());
+    assert_eq!(b.record().range, None);
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.scene().mesh.indices, v.scene.mesh.indices);
+    assert_eq!(vmf(&back).bake, v.bake);
+    let mut frame = back
+        .frame(&FrameSettings::default_for(MethodKind::Vmf))
+        .unwrap();
+    let env =
+        relight_scene::scene::Environment::new(relight_sphere::EnvMap::constant(glam::Vec3::ONE));
+    frame.set_environment(&env).unwrap();
+    let out = frame.render(&back.scene().desc.camera, &FrameOptions::default());
+    assert!(out.image.pixels.iter().all(|p| p.is_finite()));
+    let e = with_input(0.5, |input| {
+        bake_part::<Vmf>(input, &s, Shard { index: 0, count: 2 }, &ctx(false))
+            .expect_err("refused")
+            .to_string()
+    });
+    assert!(e.contains("spatial") && e.contains("whole"), "{e}");
+}
