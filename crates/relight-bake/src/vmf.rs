@@ -28,8 +28,8 @@
 //! Modules: [`material_lobes`] (eq. 9, the sampling density), [`mod@slice`] (eq. 13-15, a transfer
 //! slice from traced paths), [`interp`] (eq. 6, slices between views or vertices),
 //! [`refine`] (section 4.2, adaptive angular refinement), [`mod@bake`] (the slices of every
-//! vertex for its level of views). The adaptive spatial refinement of section 4.3 is not
-//! implemented yet.
+//! vertex for its level of views), [`subdivide`] and [`spatial`] (section 4.3, adaptive
+//! spatial refinement).
 
 pub mod bake;
 pub mod interp;

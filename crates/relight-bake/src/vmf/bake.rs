@@ -2,7 +2,7 @@
 //! [`TransferSlice`] per view of an icosahedral level: `view_level` for every vertex, or with
 //! `angular_threshold > 0` the level the adaptive angular refinement of section 4.2 chose for
 //! it between `min_view_level` and `view_level` ([`super::refine`]). The adaptive spatial
-//! refinement (section 4.3) is not implemented.
+//! refinement (section 4.3) is [`super::spatial::bake_refined`].
 //!
 //! # Views
 //! The views are the vertices of the geodesic icosahedron of subdivision level `view_level`
