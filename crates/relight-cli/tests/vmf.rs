@@ -175,3 +175,42 @@ fn other_methods_bundles_bad_settings_and_foreign_options_are_refused() {
     let o = relight(&["render", s(&sh), "-o", s(&img), "--method", "vmf"]);
     assert_clean_failure(&o, "`sh` bake, but --method vmf", &img);
 }
+
+/// A Lambert plane with a box on it: the spatial refinement adds vertices, the bundle holds
+/// the refined mesh, and the bake refuses to be split.
+#[test]
+fn a_spatially_refined_bake_renders_and_is_not_split() {
+    let dir = tmpdir("vmf", "spatial");
+    let sc = dir.join("box.json");
+    std::fs::write(
+        &sc,
+        r#"{
+  "shapes": [{"type": "plane", "center": [0, 0, 0], "size": 4, "divisions": 4,
+              "material": {"type": "lambert", "albedo": [0.6, 0.6, 0.6]}},
+             {"type": "box", "min": [0.6, 0, -0.5], "max": [1.4, 0.8, 0.5],
+              "material": {"type": "lambert", "albedo": [0.4, 0.4, 0.4]}}],
+  "environment": {"type": "constant", "radiance": [1, 1, 1]},
+  "camera": {"origin": [0, 3, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+             "fov_deg": 50, "width": 24, "height": 18}
+}"#,
+    )
+    .unwrap();
+    let b = dir.join("s.relight");
+    let o = bake(
+        &sc,
+        &b,
+        &["--spatial-threshold", "0.05", "--spatial-batch", "8"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relight(&["info", s(&b), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    // 25 plane vertices and 24 box vertices before the refinement.
+    assert!(j["vertices"].as_u64().unwrap() > 49, "{j}");
+    let img = dir.join("s.exr");
+    let o = relight(&["render", s(&b), "-o", s(&img)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let p = dir.join("p.relight");
+    let o = bake(&sc, &p, &["--spatial-threshold", "0.05", "--shard", "0/2"]);
+    assert_clean_failure(&o, "spatial", &p);
+}
