@@ -111,6 +111,11 @@ fn a_sharded_bake_merges_to_the_same_bytes() {
     let img = dir.join("part.exr");
     let o = relight(&["render", s(&parts[0]), "-o", s(&img)]);
     assert_clean_failure(&o, "merge the parts", &img);
+    // A checkpointed bake (chunks of 50 vertices, merged) writes the same bytes too.
+    let ck = dir.join("ck.relight");
+    let o = bake(&sc, &ck, &["--checkpoint-vertices", "50"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&ck).unwrap(), std::fs::read(&whole).unwrap());
 }
 
 #[test]
