@@ -26,13 +26,22 @@
 //!   at `x` apart (the paper's `T_d` and `T_g`, eq. 3).
 //!
 //! Modules: [`material_lobes`] (eq. 9, the sampling density), [`mod@slice`] (eq. 13-15, a transfer
-//! slice from traced paths), [`mod@bake`] (slices of every vertex for a fixed level of views; the
-//! adaptive angular and spatial refinement of section 4 is not implemented yet).
+//! slice from traced paths), [`interp`] (eq. 6, slices between views or vertices),
+//! [`refine`] (section 4.2, adaptive angular refinement), [`mod@bake`] (the slices of every
+//! vertex for its level of views), [`subdivide`] and [`spatial`] (section 4.3, adaptive
+//! spatial refinement).
 
 pub mod bake;
+pub mod interp;
 pub mod material_lobes;
+pub mod refine;
 pub mod slice;
+pub mod spatial;
+pub mod subdivide;
 
-pub use bake::{bake, bake_vertices, InvalidVmfBake, VmfBake, VmfBakeSettings};
+pub use bake::{
+    bake, bake_vertices, view_counts, views_of_level, InvalidVmfBake, VmfBake, VmfBakeSettings,
+};
+pub use interp::{blend_lobes, blend_slices, slice_distance, ViewTable};
 pub use material_lobes::{MaterialLobes, Term};
 pub use slice::{PathClass, SliceSettings, TransferSlice};

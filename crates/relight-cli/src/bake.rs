@@ -6,11 +6,13 @@ use clap::ArgMatches;
 use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
+use relight_bake::vmf::VmfBakeSettings;
 use relight_method::cuts::Cuts;
 use relight_method::memory::MemoryPlan;
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::shard::{bake_part, Shard};
+use relight_method::vmf::Vmf;
 use relight_method::{BakeContext, BakeInput, BakeSummary, Baked, Method, MethodKind};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -35,7 +37,8 @@ pub struct Args {
     )]
     pub sh_order: usize,
     /// Indirect bounces: of the interreflected transfer (sh with --transfer interreflected;
-    /// default 1), of the indirect glossy paths (sg with --indirect-lobes > 0; default 3).
+    /// default 1), of the indirect glossy paths (sg with --indirect-lobes > 0; default 3),
+    /// scatterings after the point (vmf; default 1, the paper's).
     #[arg(long)]
     pub bounces: Option<u32>,
     /// Random seed (the bake is deterministic for a seed, whatever the thread count).
@@ -82,6 +85,9 @@ pub struct Args {
     /// Cuts options.
     #[command(flatten)]
     pub cuts: CutsBakeSettings,
+    /// vMF options.
+    #[command(flatten)]
+    pub vmf: VmfBakeSettings,
 }
 
 /// `relight bake --method sg`'s spatially varying material (thesis 2.3.1).
@@ -126,6 +132,7 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
             ),
             (&[MethodKind::Sg], sg),
             (&[MethodKind::Cuts], arg_names::<CutsBakeSettings>()),
+            (&[MethodKind::Vmf], arg_names::<VmfBakeSettings>()),
         ],
     )?;
     if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
@@ -240,6 +247,19 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 s.lights, s.tree, s.sigma, s.max_cut
             );
             bake_with::<Cuts>(input, &s, &a, &ctx)?
+        }
+        relight_method::BakeKind::Vmf => {
+            let s = VmfBakeSettings {
+                seed: a.seed,
+                max_bounces: a.bounces.unwrap_or(VmfBakeSettings::default().max_bounces),
+                ..a.vmf
+            };
+            Vmf::validate(&s)?;
+            eprintln!(
+                "{what}: vmf, view level {}, {} paths per slice, {} bounce(s)",
+                s.view_level, s.paths, s.max_bounces
+            );
+            bake_with::<Vmf>(input, &s, &a, &ctx)?
         }
     };
     report(&a.out, &baked, out);

@@ -47,9 +47,11 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     out.line(format!("  renders with --method {}", methods.join(", ")));
     let mut sg_json = json!(null);
     let mut cuts_json = json!(null);
+    let mut vmf_json = json!(null);
     let described = match &baked {
         Baked::Sg(sg) => Some(sg.describe()),
         Baked::Cuts(cuts) => Some(cuts.describe()),
+        Baked::Vmf(vmf) => Some(vmf.describe()),
         Baked::Sh(_) => None,
     };
     if let Some((lines, j)) = described {
@@ -64,6 +66,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         ));
         match &baked {
             Baked::Cuts(_) => cuts_json = j,
+            Baked::Vmf(_) => vmf_json = j,
             _ => sg_json = j,
         }
     }
@@ -92,6 +95,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         "tensors": tensors,
         "sg": sg_json,
         "cuts": cuts_json,
+        "vmf": vmf_json,
     }));
     Ok(())
 }

@@ -7,6 +7,7 @@ use relight_method::cuts::CutsFrameSettings;
 use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgFrameSettings;
 use relight_method::sh::ShFrameSettings;
+use relight_method::vmf::VmfFrameSettings;
 use relight_method::{read_any, FrameOptions, FrameSettings, MethodKind};
 use relight_render::write_image;
 use serde_json::json;
@@ -22,7 +23,7 @@ pub struct Args {
     #[arg(short, long, required = true)]
     pub out: Vec<PathBuf>,
     /// Method (default: the bundle's: sh for an sh bake, sg for an sg bake, cuts for a cuts
-    /// bake; hybrid renders sh bakes).
+    /// bake, vmf for a vmf bake; hybrid renders sh bakes).
     #[arg(long, value_enum)]
     pub method: Option<MethodKind>,
     #[command(flatten)]
@@ -61,6 +62,9 @@ pub struct Args {
     /// Cuts options.
     #[command(flatten)]
     pub cuts: CutsFrameSettings,
+    /// vMF options.
+    #[command(flatten)]
+    pub vmf: VmfFrameSettings,
 }
 
 /// The frame settings of `method` from the options.
@@ -76,6 +80,7 @@ fn frame_settings(a: &Args, method: MethodKind) -> Result<FrameSettings> {
         }),
         MethodKind::Sg => FrameSettings::Sg(a.sg),
         MethodKind::Cuts => FrameSettings::Cuts(a.cuts),
+        MethodKind::Vmf => FrameSettings::Vmf(a.vmf),
     })
 }
 
@@ -99,6 +104,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[MethodKind::Hybrid], arg_names::<HybridSettings>()),
             (&[MethodKind::Sg], arg_names::<SgFrameSettings>()),
             (&[MethodKind::Cuts], arg_names::<CutsFrameSettings>()),
+            (&[MethodKind::Vmf], arg_names::<VmfFrameSettings>()),
         ],
     )?;
     let settings = frame_settings(&a, method)?;

@@ -48,6 +48,7 @@ pub mod shard;
 pub mod store;
 #[cfg(test)]
 mod test_scene;
+pub mod vmf;
 
 pub use error::MethodError;
 pub use store::{BakeRecord, BakedScene};
@@ -78,15 +79,20 @@ pub enum MethodKind {
     /// evaluated at render time (Cheslack-Postava et al. 2008). A preview: environment light
     /// only, no textures or local lights yet, and not yet checked against Mitsuba (issue 11).
     Cuts,
+    /// View-dependent glossy PRT with one von Mises-Fisher lobe per light-path class,
+    /// estimated in closed form from traced paths (Laurijssen & Dutré 2009). In progress
+    /// (issue 12).
+    Vmf,
 }
 
 impl MethodKind {
     /// Every method.
-    pub const ALL: [MethodKind; 4] = [
+    pub const ALL: [MethodKind; 5] = [
         MethodKind::Sh,
         MethodKind::Hybrid,
         MethodKind::Sg,
         MethodKind::Cuts,
+        MethodKind::Vmf,
     ];
 
     /// The name on the command line.
@@ -96,6 +102,7 @@ impl MethodKind {
             MethodKind::Hybrid => "hybrid",
             MethodKind::Sg => "sg",
             MethodKind::Cuts => "cuts",
+            MethodKind::Vmf => "vmf",
         }
     }
 
@@ -105,6 +112,7 @@ impl MethodKind {
             MethodKind::Sh | MethodKind::Hybrid => BakeKind::Sh,
             MethodKind::Sg => BakeKind::Sg,
             MethodKind::Cuts => BakeKind::Cuts,
+            MethodKind::Vmf => BakeKind::Vmf,
         }
     }
 }
@@ -120,6 +128,8 @@ pub enum BakeKind {
     /// Light samples, light tree and per-vertex visibility cuts ([`cuts::CutsBaked`]),
     /// rendered by `cuts`.
     Cuts,
+    /// Per-vertex, per-view vMF transfer slices ([`vmf::VmfBaked`]), rendered by `vmf`.
+    Vmf,
 }
 
 impl BakeKind {
@@ -129,6 +139,7 @@ impl BakeKind {
             BakeKind::Sh => "sh",
             BakeKind::Sg => "sg",
             BakeKind::Cuts => "cuts",
+            BakeKind::Vmf => "vmf",
         }
     }
 
@@ -287,6 +298,8 @@ pub enum Baked {
     Sg(sg::SgBaked),
     /// A `cuts` bake.
     Cuts(cuts::CutsBaked),
+    /// A `vmf` bake.
+    Vmf(vmf::VmfBaked),
 }
 
 impl Baked {
@@ -296,6 +309,7 @@ impl Baked {
             Baked::Sh(_) => BakeKind::Sh,
             Baked::Sg(_) => BakeKind::Sg,
             Baked::Cuts(_) => BakeKind::Cuts,
+            Baked::Vmf(_) => BakeKind::Vmf,
         }
     }
 
@@ -305,6 +319,7 @@ impl Baked {
             Baked::Sh(b) => &b.scene,
             Baked::Sg(b) => &b.scene,
             Baked::Cuts(b) => &b.scene,
+            Baked::Vmf(b) => &b.scene,
         }
     }
 
@@ -314,6 +329,7 @@ impl Baked {
             Baked::Sh(b) => &b.record,
             Baked::Sg(b) => &b.record,
             Baked::Cuts(b) => &b.record,
+            Baked::Vmf(b) => &b.record,
         }
     }
 
@@ -323,6 +339,7 @@ impl Baked {
             Baked::Sh(b) => &mut b.record,
             Baked::Sg(b) => &mut b.record,
             Baked::Cuts(b) => &mut b.record,
+            Baked::Vmf(b) => &mut b.record,
         }
     }
 
@@ -332,6 +349,7 @@ impl Baked {
             Baked::Sh(b) => &mut b.scene,
             Baked::Sg(b) => &mut b.scene,
             Baked::Cuts(b) => &mut b.scene,
+            Baked::Vmf(b) => &mut b.scene,
         };
         BakedScene {
             desc: s.desc.clone(),
@@ -346,6 +364,7 @@ impl Baked {
             Baked::Sh(b) => b.scene = scene,
             Baked::Sg(b) => b.scene = scene,
             Baked::Cuts(b) => b.scene = scene,
+            Baked::Vmf(b) => b.scene = scene,
         }
     }
 
@@ -355,6 +374,7 @@ impl Baked {
             Baked::Sh(b) => serde_json::to_string(&b.settings),
             Baked::Sg(b) => serde_json::to_string(&b.settings),
             Baked::Cuts(b) => serde_json::to_string(&b.settings),
+            Baked::Vmf(b) => serde_json::to_string(&b.settings),
         }
         .unwrap_or_default()
     }
@@ -368,6 +388,7 @@ impl Baked {
             Baked::Sh(b) => sh::Sh::store(b),
             Baked::Sg(b) => sg::Sg::store(b),
             Baked::Cuts(b) => cuts::Cuts::store(b),
+            Baked::Vmf(b) => vmf::Vmf::store(b),
         }
     }
 
@@ -399,6 +420,7 @@ impl Baked {
             }
             (Baked::Sg(b), FrameSettings::Sg(s)) => Ok(Box::new(sg::SgFrame::new(b, s)?)),
             (Baked::Cuts(b), FrameSettings::Cuts(s)) => Ok(Box::new(cuts::CutsFrame::new(b, s)?)),
+            (Baked::Vmf(b), FrameSettings::Vmf(s)) => Ok(Box::new(vmf::VmfFrame::new(b, s)?)),
             _ => Err(MethodError::WrongBake {
                 path: path.to_path_buf(),
                 found: self.kind(),
@@ -450,6 +472,7 @@ impl BakeSummary {
             describe: match b {
                 Baked::Sg(sg) => Some(sg.describe()),
                 Baked::Cuts(cuts) => Some(cuts.describe()),
+                Baked::Vmf(vmf) => Some(vmf.describe()),
                 Baked::Sh(_) => None,
             },
         }
@@ -474,6 +497,12 @@ impl From<cuts::CutsBaked> for Baked {
     }
 }
 
+impl From<vmf::VmfBaked> for Baked {
+    fn from(b: vmf::VmfBaked) -> Self {
+        Baked::Vmf(b)
+    }
+}
+
 /// Read any bundle and check it: the right [`Baked`] arm for its `method` metadata.
 ///
 /// # Errors
@@ -492,9 +521,10 @@ pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
         "sh" => Ok(Baked::Sh(sh::Sh::load(b, path)?)),
         "sg" => Ok(Baked::Sg(sg::Sg::load(b, path)?)),
         "cuts" => Ok(Baked::Cuts(cuts::Cuts::load(b, path)?)),
+        "vmf" => Ok(Baked::Vmf(vmf::Vmf::load(b, path)?)),
         m => Err(MethodError::invalid(
             path,
-            format!("unknown bake method '{m}' (this relight reads sh, sg, cuts)"),
+            format!("unknown bake method '{m}' (this relight reads sh, sg, cuts, vmf)"),
         )),
     }
 }
@@ -510,6 +540,8 @@ pub enum FrameSettings {
     Sg(sg::SgFrameSettings),
     /// `cuts`.
     Cuts(cuts::CutsFrameSettings),
+    /// `vmf`.
+    Vmf(vmf::VmfFrameSettings),
 }
 
 impl FrameSettings {
@@ -520,6 +552,7 @@ impl FrameSettings {
             FrameSettings::Hybrid(_) => MethodKind::Hybrid,
             FrameSettings::Sg(_) => MethodKind::Sg,
             FrameSettings::Cuts(_) => MethodKind::Cuts,
+            FrameSettings::Vmf(_) => MethodKind::Vmf,
         }
     }
 
@@ -530,6 +563,7 @@ impl FrameSettings {
             MethodKind::Hybrid => FrameSettings::Hybrid(Default::default()),
             MethodKind::Sg => FrameSettings::Sg(Default::default()),
             MethodKind::Cuts => FrameSettings::Cuts(Default::default()),
+            MethodKind::Vmf => FrameSettings::Vmf(Default::default()),
         }
     }
 }

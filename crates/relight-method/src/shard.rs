@@ -24,6 +24,8 @@
 //!   fill: the regions' alignment, the flip count and the statistics. Relaxation sweeps refit
 //!   vertices across region borders after the fill, so a bake with relaxation is refused.
 //!   At most one part per region (`--regions` raises their number).
+//! * `vmf`, by vertex ranges (each slice is seeded by its vertex and view); the merge
+//!   concatenates rows in memory (`Method::streams` says so, and `--memory-limit` refuses).
 //! * Interreflected `sh` is refused: each bounce gathers the previous bounce of *every*
 //!   vertex, so every part would trace the whole mesh (no part would be cheaper than the
 //!   whole bake).
@@ -107,7 +109,7 @@ where
     if shard.count > most {
         let more = match M::KIND {
             crate::BakeKind::Sg => " (--regions raises their number)",
-            crate::BakeKind::Sh | crate::BakeKind::Cuts => "",
+            crate::BakeKind::Sh | crate::BakeKind::Cuts | crate::BakeKind::Vmf => "",
         };
         return Err(MethodError::Settings(format!(
             "--shard {}/{}: this {} bake splits into at most {most} parts, one per {}{more}",
@@ -186,7 +188,9 @@ where
             } = first;
             let rest = it.map(|b| match b {
                 Baked::Sg(b) => (b.bake, b.part),
-                Baked::Sh(_) | Baked::Cuts(_) => unreachable!("kinds checked above"),
+                Baked::Sh(_) | Baked::Cuts(_) | Baked::Vmf(_) => {
+                    unreachable!("kinds checked above")
+                }
             });
             let bake = merge_sg(
                 &settings.bake,
@@ -211,6 +215,16 @@ where
             }
             Baked::Cuts(cuts)
         }
+        Some(Baked::Vmf(mut vmf)) => {
+            for b in it {
+                let Baked::Vmf(p) = b else {
+                    unreachable!("kinds checked above")
+                };
+                vmf.bake.append(p.bake);
+                vmf.record.seconds += p.record.seconds;
+            }
+            Baked::Vmf(vmf)
+        }
         None => unreachable!("no part is missing"),
     };
     whole.put_scene(scene.expect("at least one part"));
@@ -220,6 +234,7 @@ where
         Baked::Sh(sh) => sh.validate(),
         Baked::Sg(sg) => sg.validate(),
         Baked::Cuts(cuts) => cuts.validate(),
+        Baked::Vmf(vmf) => vmf.validate(),
     };
     valid.map_err(|e| err(&first_path, format!("merged bake: {e}")))?;
     Ok(whole)
@@ -302,7 +317,8 @@ impl Checker {
         }
         let v = self.vertices;
         let want = s.range(v);
-        if b.kind() == BakeKind::Sh && r.range.unwrap_or((0, v)) != (want.start, want.end) {
+        let by_range = matches!(b.kind(), BakeKind::Sh | BakeKind::Vmf);
+        if by_range && r.range.unwrap_or((0, v)) != (want.start, want.end) {
             return Err(err(format!(
                 "holds vertices {:?} but part {}/{} is {want:?}",
                 r.range, s.index, s.count

@@ -2,7 +2,7 @@
 //!
 //! # Bundle schema (docs/BUNDLE.md has the full table)
 //! Metadata (strings, JSON where structured):
-//! * `method`: the bake kind, `sh` or `sg` ([`crate::BakeKind::name`]);
+//! * `method`: the bake kind, `sh`, `sg`, `cuts` or `vmf` ([`crate::BakeKind::name`]);
 //! * `schema`: `2` since the method seam (absent in older bundles, which still load:
 //!   [`legacy_record`] and each method's settings migration read them);
 //! * `relight_version`: the crate version that wrote it;
@@ -14,7 +14,8 @@
 //!
 //! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
 //! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32). Each method adds its own,
-//! prefixed by nothing for `sh` (`albedo`, `transfer`) and by `sg_` for `sg`.
+//! prefixed by nothing for `sh` (`albedo`, `transfer`) and by its name for the others (`sg_`,
+//! `cuts_`, `vmf_`).
 
 use crate::MethodError;
 use glam::{Vec2, Vec3};

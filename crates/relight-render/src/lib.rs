@@ -14,6 +14,7 @@ pub mod raster;
 pub mod shade_cuts;
 pub mod shade_sg;
 pub mod shade_sh;
+pub mod shade_vmf;
 pub mod shadowmap;
 pub mod text;
 pub mod tonemap;

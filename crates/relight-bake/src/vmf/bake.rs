@@ -1,5 +1,8 @@
-//! The vMF bake over views (paper sections 4.2 and 6.1, without the adaptive refinement):
-//! for every vertex, one [`TransferSlice`] per view of a fixed icosahedral level.
+//! The vMF bake over views (paper sections 4.2 and 6.1): for every vertex, one
+//! [`TransferSlice`] per view of an icosahedral level: `view_level` for every vertex, or with
+//! `angular_threshold > 0` the level the adaptive angular refinement of section 4.2 chose for
+//! it between `min_view_level` and `view_level` ([`super::refine`]). The adaptive spatial
+//! refinement (section 4.3) is [`super::spatial::bake_refined`].
 //!
 //! # Views
 //! The views are the vertices of the geodesic icosahedron of subdivision level `view_level`
@@ -11,18 +14,20 @@
 //! level 1 gives 17).
 //!
 //! # Layout and determinism
-//! `slices[x * view_count + v]` (vertex-major). The slice of vertex `x` and view `v` draws
-//! its random numbers from `Rng::new(seed, x * view_count + v)` only ([`trace_slice`]), so a
-//! bake depends on the seed, never on the threads. A vertex's point is its position, its
+//! Slices are stored vertex after vertex ([`VmfBake`]); in a fixed-level bake that is
+//! `slices[x * view_count + v]`. The slice of vertex `x` and view `v` of level `l` draws its
+//! random numbers from `Rng::new(seed, slice_stream(x, l, v))` only ([`super::slice::trace_slice`],
+//! [`slice_stream`]), so a bake depends on the seed, never on the threads. A vertex's point is its position, its
 //! normalised shading normal, its area-weighted geometric normal
 //! ([`crate::transport::vertex_geometric_normals`]) and its material
 //! ([`crate::sg::transport::vertex_materials`] unless given per vertex). A part of the
 //! vertices ([`bake_vertices`]) is therefore exactly that part of the whole bake (sharding).
 
+use super::refine::{level_view, slice_stream, Refiner, LEVEL_VIEWS};
 use super::slice::{
-    trace_slice, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
+    trace_slice_with, PathClass, SliceScene, SliceSettings, SurfacePoint, TransferSlice,
 };
-use super::Term;
+use super::{MaterialLobes, Term};
 use crate::transport::{
     check_mesh, check_mesh_geometry, progress_bar, vertex_geometric_normals, with_threads,
 };
@@ -36,12 +41,14 @@ use relight_sphere::icosphere::Icosphere;
 use relight_sphere::vmf::KappaEstimate;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::OnceLock;
 
 /// Largest icosahedral level of the views (the paper's maximum, section 6.1).
 pub const MAX_VIEW_LEVEL: u32 = 5;
 
-/// Settings of the vMF bake: what a `vmf` bundle will record (serde) and, with the `cli`
-/// feature, the options of a future `relight bake --method vmf`.
+/// Settings of the vMF bake: what a `vmf` bundle records (serde) and, with the `cli` feature,
+/// the options of `relight bake --method vmf`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
 #[cfg_attr(
@@ -50,9 +57,39 @@ pub const MAX_VIEW_LEVEL: u32 = 5;
 )]
 pub struct VmfBakeSettings {
     /// Icosahedral subdivision level of the views, `0..=5` (frequency `2^level`; level 1
-    /// has 42 vertices on the sphere, 17 of them strictly above the horizon).
+    /// has 42 vertices on the sphere, 17 of them strictly above the horizon): every vertex's
+    /// level, or with `--angular-threshold` the finest level a vertex may reach.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().view_level))]
     pub view_level: u32,
+    /// Adaptive angular refinement (paper section 4.2): refine a vertex's views level by level
+    /// from `--min-view-level` up to `--view-level` until the mean L2 distance (1/sr) between
+    /// the next level's slices and their interpolation from the current level falls below this
+    /// threshold. 0: off, every vertex at `--view-level`.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().angular_threshold))]
+    pub angular_threshold: f32,
+    /// The coarsest view level of the adaptive refinement, `0..=view_level`.
+    #[serde(default = "default_min_view_level")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().min_view_level))]
+    pub min_view_level: u32,
+    /// Adaptive spatial refinement (paper section 4.3): split triangles (1 to 4, at their
+    /// edges' midpoints) while the largest mean L2 distance (1/sr) between the transfer of
+    /// two of their vertices exceeds this threshold. 0: off, the scene's mesh as it is. The
+    /// refined mesh is stored in the bundle and rendered; such a bake cannot be sharded.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_threshold))]
+    pub spatial_threshold: f32,
+    /// Smallest area of a triangle the spatial refinement splits, as a fraction of the
+    /// input mesh's mean triangle area, in `(0, 1]` (1/64: at most three levels of splits
+    /// of an average triangle, forced splits of neighbours aside).
+    #[serde(default = "default_spatial_min_area")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_min_area))]
+    pub spatial_min_area: f32,
+    /// Triangles split per iteration of the spatial refinement, those of largest error first
+    /// (the paper: 200), at least 1.
+    #[serde(default = "default_spatial_batch")]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().spatial_batch))]
+    pub spatial_batch: u32,
     /// Paths per (vertex, view) slice.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().paths))]
     pub paths: u32,
@@ -78,13 +115,34 @@ pub struct VmfBakeSettings {
     pub progress: bool,
 }
 
+/// The default coarsest level of the adaptive refinement: level 1 (17 views; level 0 has only
+/// 4 views above the horizon).
+fn default_min_view_level() -> u32 {
+    1
+}
+
+/// The default smallest area of a split triangle: 1/64 of the input's mean.
+fn default_spatial_min_area() -> f32 {
+    1.0 / 64.0
+}
+
+/// The default number of triangles split per iteration: the paper's 200 (section 6.1).
+fn default_spatial_batch() -> u32 {
+    200
+}
+
 impl Default for VmfBakeSettings {
-    /// Level 1 views, the slice defaults of [`SliceSettings::default`] (1024 paths, one
+    /// Level 1 views, no adaptive refinement (coarsest level 1 when it is on), the slice defaults of [`SliceSettings::default`] (1024 paths, one
     /// bounce, 1024 material samples, `kappa_max = 1e4`), seed 0, all cores, no progress bar.
     fn default() -> Self {
         let s = SliceSettings::default();
         VmfBakeSettings {
             view_level: 1,
+            angular_threshold: 0.0,
+            min_view_level: default_min_view_level(),
+            spatial_threshold: 0.0,
+            spatial_min_area: default_spatial_min_area(),
+            spatial_batch: default_spatial_batch(),
             paths: s.paths,
             max_bounces: s.max_bounces,
             material_samples: s.material_samples,
@@ -118,6 +176,35 @@ impl VmfBakeSettings {
                 self.view_level
             )));
         }
+        if !(self.angular_threshold.is_finite() && self.angular_threshold >= 0.0) {
+            return Err(BakeError::Settings(format!(
+                "angular_threshold {} must be finite and >= 0",
+                self.angular_threshold
+            )));
+        }
+        if !(self.spatial_threshold.is_finite() && self.spatial_threshold >= 0.0) {
+            return Err(BakeError::Settings(format!(
+                "spatial_threshold {} must be finite and >= 0",
+                self.spatial_threshold
+            )));
+        }
+        if !(self.spatial_min_area > 0.0 && self.spatial_min_area <= 1.0) {
+            return Err(BakeError::Settings(format!(
+                "spatial_min_area {} is not in (0, 1]",
+                self.spatial_min_area
+            )));
+        }
+        if self.spatial_batch == 0 {
+            return Err(BakeError::Settings(
+                "spatial_batch must be at least 1".into(),
+            ));
+        }
+        if self.angular_threshold > 0.0 && self.min_view_level > self.view_level {
+            return Err(BakeError::Settings(format!(
+                "min_view_level {} is above view_level {}",
+                self.min_view_level, self.view_level
+            )));
+        }
         self.slice_settings().validate()
     }
 
@@ -126,24 +213,56 @@ impl VmfBakeSettings {
     /// # Panics
     /// Debug builds assert a valid level.
     pub fn views(&self) -> Vec<Vec3> {
-        debug_assert!(self.view_level <= MAX_VIEW_LEVEL);
-        Icosphere::new(1 << self.view_level)
-            .vertices()
-            .iter()
-            .copied()
-            .filter(|v| v.z > 0.0)
-            .collect()
+        views_of_level(self.view_level)
+    }
+
+    /// The lowest and highest view level a vertex of this bake may have: both
+    /// `view_level` for a fixed-level bake, `min_view_level..=view_level` with adaptive
+    /// refinement.
+    pub fn level_range(&self) -> (u32, u32) {
+        if self.angular_threshold > 0.0 {
+            (self.min_view_level, self.view_level)
+        } else {
+            (self.view_level, self.view_level)
+        }
     }
 }
 
-/// A vMF bake: one transfer slice per vertex and view (layout in the module docs).
+/// The views of icosahedral level `level` (local frame, unit, `z > 0`, in [`Icosphere`]
+/// vertex order; module docs).
+///
+/// # Panics
+/// Debug builds assert `level <= MAX_VIEW_LEVEL`.
+pub fn views_of_level(level: u32) -> Vec<Vec3> {
+    debug_assert!(level <= MAX_VIEW_LEVEL);
+    Icosphere::new(1 << level)
+        .vertices()
+        .iter()
+        .copied()
+        .filter(|v| v.z > 0.0)
+        .collect()
+}
+
+/// Number of views of icosahedral level `level` ([`views_of_level`]), for every level up
+/// to [`MAX_VIEW_LEVEL`] (index = level).
+pub fn view_counts() -> [usize; MAX_VIEW_LEVEL as usize + 1] {
+    std::array::from_fn(|l| views_of_level(l as u32).len())
+}
+
+/// A vMF bake of some vertices (all of a mesh, or a part of a sharded bake): each vertex has
+/// its own icosahedral level of views (section 4.2; the fixed-level bake gives every vertex
+/// `settings.view_level`) and one transfer slice per view of that level, in the order of
+/// [`views_of_level`]. Rows are stored flat: the slices of the `i`-th vertex of the bake are
+/// `slices[offsets[i]..offsets[i + 1]]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VmfBake {
     /// The settings it was baked with.
     pub settings: VmfBakeSettings,
-    /// The views (local frame, unit, `z > 0`).
-    pub views: Vec<Vec3>,
-    /// `vertex_count * views.len()` slices, vertex-major.
+    /// The icosahedral level of each vertex's views, `<= settings.view_level`.
+    pub levels: Vec<u8>,
+    /// `levels.len() + 1` offsets into `slices`, from 0, non-decreasing.
+    pub offsets: Vec<usize>,
+    /// The slices, vertex after vertex.
     pub slices: Vec<TransferSlice>,
 }
 
@@ -155,21 +274,41 @@ pub struct InvalidVmfBake(pub String);
 impl VmfBake {
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
-        self.slices.len().checked_div(self.views.len()).unwrap_or(0)
+        self.levels.len()
     }
 
-    /// The slice of vertex `x` and view `v`.
+    /// The slices of the `x`-th vertex of the bake, in the order of
+    /// `views_of_level(levels[x])`.
+    ///
+    /// # Panics
+    /// If `x` is out of range.
+    pub fn vertex_slices(&self, x: usize) -> &[TransferSlice] {
+        &self.slices[self.offsets[x]..self.offsets[x + 1]]
+    }
+
+    /// The slice of vertex `x` and view `v` (of its level).
     ///
     /// # Panics
     /// If `x` or `v` is out of range.
     pub fn slice(&self, x: usize, v: usize) -> &TransferSlice {
-        assert!(v < self.views.len(), "view {v} of {}", self.views.len());
-        &self.slices[x * self.views.len() + v]
+        let s = self.vertex_slices(x);
+        assert!(v < s.len(), "view {v} of {}", s.len());
+        &s[v]
     }
 
-    /// Check every invariant: valid settings, the views of the level, one slice per vertex
-    /// and view, every lobe with a unit axis, a finite `kappa` in `[0, kappa_max]` and a
-    /// finite non-negative amplitude.
+    /// Append the vertices of `other` (a later part of the same bake) after these.
+    pub fn append(&mut self, other: VmfBake) {
+        let base = self.slices.len();
+        self.levels.extend_from_slice(&other.levels);
+        self.offsets
+            .extend(other.offsets.iter().skip(1).map(|&o| o + base));
+        self.slices.extend(other.slices);
+    }
+
+    /// Check every invariant: valid settings, one level per vertex within the settings'
+    /// (all equal to `view_level` unless the bake is adaptive), offsets from 0 that give each
+    /// vertex as many slices as its level has views, every lobe with a unit axis, a finite
+    /// `kappa` in `[0, kappa_max]` and a finite non-negative amplitude.
     ///
     /// # Errors
     /// The first invariant that fails.
@@ -178,39 +317,47 @@ impl VmfBake {
         if let Err(e) = self.settings.validate() {
             return err(e.to_string());
         }
-        if self.views != self.settings.views() {
+        if self.offsets.len() != self.levels.len() + 1 || self.offsets[0] != 0 {
             return err(format!(
-                "{} views are not those of level {}",
-                self.views.len(),
-                self.settings.view_level
+                "{} offsets for {} vertices (need one more, from 0)",
+                self.offsets.len(),
+                self.levels.len()
             ));
         }
-        if self.views.is_empty() || !self.slices.len().is_multiple_of(self.views.len()) {
+        if self.offsets[self.levels.len()] != self.slices.len() {
             return err(format!(
-                "{} slices for {} views",
-                self.slices.len(),
-                self.views.len()
+                "offsets end at {} but there are {} slices",
+                self.offsets[self.levels.len()],
+                self.slices.len()
             ));
+        }
+        let counts = view_counts();
+        let (lo, hi) = self.settings.level_range();
+        for (x, &l) in self.levels.iter().enumerate() {
+            if !(lo..=hi).contains(&u32::from(l)) {
+                return err(format!("vertex {x}: view level {l} is not in {lo}..={hi}"));
+            }
+            let (a, b) = (self.offsets[x], self.offsets[x + 1]);
+            if b < a || b - a != counts[l as usize] {
+                return err(format!(
+                    "vertex {x}: {} slices for the {} views of level {l}",
+                    b.wrapping_sub(a) as isize,
+                    counts[l as usize]
+                ));
+            }
         }
         for (i, s) in self.slices.iter().enumerate() {
             for t in Term::ALL {
                 for c in PathClass::ALL {
                     let l = s.lobe(t, c);
-                    let (x, v) = (i / self.views.len(), i % self.views.len());
                     if (l.axis.length() - 1.0).abs() > 1e-4 {
-                        return err(format!("vertex {x} view {v} {t:?} {c:?}: axis {}", l.axis));
+                        return err(format!("slice {i} {t:?} {c:?}: axis {}", l.axis));
                     }
                     if !(l.kappa >= 0.0 && l.kappa <= self.settings.kappa_max) {
-                        return err(format!(
-                            "vertex {x} view {v} {t:?} {c:?}: kappa {}",
-                            l.kappa
-                        ));
+                        return err(format!("slice {i} {t:?} {c:?}: kappa {}", l.kappa));
                     }
                     if !l.amplitude.is_finite() || l.amplitude.min_element() < 0.0 {
-                        return err(format!(
-                            "vertex {x} view {v} {t:?} {c:?}: amplitude {}",
-                            l.amplitude
-                        ));
+                        return err(format!("slice {i} {t:?} {c:?}: amplitude {}", l.amplitude));
                     }
                 }
             }
@@ -237,24 +384,19 @@ pub fn bake(
     caster: &dyn RayCaster,
     settings: &VmfBakeSettings,
 ) -> Result<VmfBake, BakeError> {
-    let slices = bake_vertices(
+    bake_vertices(
         mesh,
         materials,
         vertex_materials,
         caster,
         settings,
         0..mesh.vertex_count(),
-    )?;
-    Ok(VmfBake {
-        settings: *settings,
-        views: settings.views(),
-        slices,
-    })
+    )
 }
 
-/// The slices of the vertices `vertices` only (vertex-major, `vertices.len() * views`), as
-/// [`bake`] computes them: each vertex is seeded by its index in the whole mesh, so the parts
-/// of a sharded bake concatenate to the whole bake exactly.
+/// The bake of the vertices `vertices` only, as [`bake`] computes them: each vertex is seeded
+/// by its index in the whole mesh, so the parts of a sharded bake concatenate
+/// ([`VmfBake::append`]) to the whole bake exactly.
 ///
 /// # Errors
 /// As [`bake`], and [`BakeError::Settings`] for a range outside the mesh.
@@ -265,14 +407,54 @@ pub fn bake_vertices(
     caster: &dyn RayCaster,
     settings: &VmfBakeSettings,
     vertices: Range<usize>,
-) -> Result<Vec<TransferSlice>, BakeError> {
-    settings.validate()?;
+) -> Result<VmfBake, BakeError> {
+    let per_vertex = checked_vertex_materials(mesh, materials, vertex_materials, settings)?;
     if vertices.start > vertices.end || vertices.end > mesh.vertex_count() {
         return Err(BakeError::Settings(format!(
             "vertex range {vertices:?} is not within 0..{}",
             mesh.vertex_count()
         )));
     }
+    let (_, hi) = settings.level_range();
+    let nv = view_counts()[hi as usize];
+    crate::check_memory(
+        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
+    )?;
+    let ng = vertex_geometric_normals(mesh);
+    let baker = PointBaker::new(mesh, caster, &per_vertex, settings);
+    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
+    let rows: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
+        vertices
+            .into_par_iter()
+            .map(|x| {
+                let point = SurfacePoint {
+                    position: mesh.positions[x],
+                    normal: mesh.normals[x].normalize_or_zero(),
+                    geometric_normal: ng[x],
+                    material: per_vertex[x],
+                };
+                let row = baker.bake_point(x, &point);
+                progress.inc(1);
+                if x % 16 == 0 {
+                    baker.report(&progress);
+                }
+                row
+            })
+            .collect()
+    })?;
+    progress.finish_and_clear();
+    Ok(VmfBake::from_rows(*settings, rows))
+}
+
+/// The per-vertex materials of a bake (given, or those of each vertex's first triangle),
+/// after checking the settings, the mesh and every material.
+pub(crate) fn checked_vertex_materials(
+    mesh: &TriMesh,
+    materials: &[Material],
+    vertex_materials: Option<&[Material]>,
+    settings: &VmfBakeSettings,
+) -> Result<Vec<Material>, BakeError> {
+    settings.validate()?;
     let per_vertex = match vertex_materials {
         Some(m) => {
             check_mesh_geometry(mesh)?;
@@ -294,45 +476,132 @@ pub fn bake_vertices(
         m.validate()
             .map_err(|e| BakeError::Scene(format!("material of vertex {v}: {e}")))?;
     }
-    let views = settings.views();
-    let nv = views.len();
-    crate::check_memory(
-        vertices.len() as u128 * nv as u128 * std::mem::size_of::<TransferSlice>() as u128,
-    )?;
-    let ng = vertex_geometric_normals(mesh);
-    let scene = SliceScene {
-        mesh,
-        caster,
-        vertex_materials: &per_vertex,
-    };
-    let slice_settings = settings.slice_settings();
-    let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
-    let per_vertex_slices: Vec<Vec<TransferSlice>> = with_threads(settings.threads, || {
-        vertices
-            .into_par_iter()
-            .map(|x| {
-                let point = SurfacePoint {
-                    position: mesh.positions[x],
-                    normal: mesh.normals[x].normalize_or_zero(),
-                    geometric_normal: ng[x],
-                    material: per_vertex[x],
-                };
-                let slices = views
-                    .iter()
-                    .enumerate()
-                    .map(|(v, &view)| {
-                        let stream = (x * nv + v) as u64;
-                        trace_slice(&scene, &point, view, &slice_settings, settings.seed, stream)
-                            .estimate(KappaEstimate::Banerjee, settings.kappa_max)
-                    })
-                    .collect();
-                progress.inc(1);
-                slices
-            })
-            .collect()
-    })?;
-    progress.finish_and_clear();
-    Ok(per_vertex_slices.into_iter().flatten().collect())
+    Ok(per_vertex)
+}
+
+impl VmfBake {
+    /// A bake of `settings` from per-vertex rows (level, slices).
+    pub(crate) fn from_rows(
+        settings: VmfBakeSettings,
+        rows: Vec<(u8, Vec<TransferSlice>)>,
+    ) -> Self {
+        let levels = rows.iter().map(|(l, _)| *l).collect();
+        let offsets = std::iter::once(0)
+            .chain(rows.iter().scan(0, |o, (_, s)| {
+                *o += s.len();
+                Some(*o)
+            }))
+            .collect();
+        VmfBake {
+            settings,
+            levels,
+            offsets,
+            slices: rows.into_iter().flat_map(|(_, s)| s).collect(),
+        }
+    }
+}
+
+/// What baking one point needs, shared by all points of a bake: the scene, the view tables,
+/// the eq. 9 lobes fitted once per (material, level, view), and the refinement counts shown
+/// by the progress bar.
+pub(crate) struct PointBaker<'a> {
+    scene: SliceScene<'a>,
+    refiner: Refiner,
+    palette: Vec<Material>,
+    lobe_cache: Vec<OnceLock<MaterialLobes>>,
+    settings: VmfBakeSettings,
+    /// Vertices that reached each level by refining.
+    refined: Vec<AtomicU64>,
+}
+
+impl<'a> PointBaker<'a> {
+    /// The baker of points whose materials are among `per_vertex` (paths scatter by them).
+    pub(crate) fn new(
+        mesh: &'a TriMesh,
+        caster: &'a dyn RayCaster,
+        per_vertex: &'a [Material],
+        settings: &VmfBakeSettings,
+    ) -> Self {
+        let (_, hi) = settings.level_range();
+        let mut palette: Vec<Material> = vec![];
+        for m in per_vertex {
+            if !palette.contains(m) {
+                palette.push(*m);
+            }
+        }
+        PointBaker {
+            scene: SliceScene {
+                mesh,
+                caster,
+                vertex_materials: per_vertex,
+            },
+            refiner: Refiner::new(hi),
+            lobe_cache: (0..palette.len() * LEVEL_VIEWS)
+                .map(|_| OnceLock::new())
+                .collect(),
+            palette,
+            settings: *settings,
+            refined: (0..=hi).map(|_| AtomicU64::new(0)).collect(),
+        }
+    }
+
+    /// The refiner (view tables).
+    pub(crate) fn refiner(&self) -> &Refiner {
+        &self.refiner
+    }
+
+    /// The level and slices of vertex `x` (its index seeds its streams) at `point`, whose
+    /// material must be one of the baker's.
+    pub(crate) fn bake_point(&self, x: usize, point: &SurfacePoint) -> (u8, Vec<TransferSlice>) {
+        let settings = &self.settings;
+        let (lo, hi) = settings.level_range();
+        let slice_settings = settings.slice_settings();
+        let material = self
+            .palette
+            .iter()
+            .position(|p| *p == point.material)
+            .expect("a material of the bake");
+        let r = self.refiner.refine(
+            lo,
+            hi,
+            settings.angular_threshold,
+            |level, v, view| {
+                let stream = slice_stream(x, level, v);
+                // The eq. 9 lobes of this material and view, fitted once per bake.
+                let slot = material * LEVEL_VIEWS + level_view(level, v);
+                let lobes = self.lobe_cache[slot].get_or_init(|| {
+                    // (normalised as `trace_slice` does, so both give the same bits)
+                    MaterialLobes::fit(&point.material, view.normalize(), settings.material_samples)
+                });
+                let lobes = (view.z > 0.0).then_some(lobes);
+                trace_slice_with(
+                    &self.scene,
+                    point,
+                    view,
+                    lobes,
+                    &slice_settings,
+                    settings.seed,
+                    stream,
+                )
+                .estimate(KappaEstimate::Banerjee, settings.kappa_max)
+            },
+            |level| {
+                self.refined[level as usize].fetch_add(1, Ordering::Relaxed);
+            },
+        );
+        (r.level as u8, r.slices)
+    }
+
+    /// Show the refinement counts so far in `progress`'s message.
+    pub(crate) fn report(&self, progress: &indicatif::ProgressBar) {
+        let (lo, hi) = self.settings.level_range();
+        if lo < hi {
+            let counts: Vec<String> = (lo + 1..=hi)
+                .map(|l| format!("L{l}:{}", self.refined[l as usize].load(Ordering::Relaxed)))
+                .collect();
+            progress.set_message(format!("vmf refined {}", counts.join(" ")));
+        }
+    }
 }
 
 #[cfg(test)]

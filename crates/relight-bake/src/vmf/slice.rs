@@ -240,6 +240,28 @@ pub fn trace_slice(
     seed: u64,
     stream: u64,
 ) -> SliceSamples {
+    let lobes = match view.try_normalize() {
+        Some(v) if v.z > 0.0 => MaterialLobes::fit(&point.material, v, settings.material_samples),
+        _ => return trace_slice_with(scene, point, view, None, settings, seed, stream),
+    };
+    trace_slice_with(scene, point, view, Some(&lobes), settings, seed, stream)
+}
+
+/// [`trace_slice`] with the point material's eq. 9 lobes for `view` given (they depend on
+/// the material and the view only, so a bake fits them once per material and view;
+/// `None` only for a view at or below the horizon, which gives no samples).
+///
+/// # Panics
+/// Debug builds assert settings in range and lobes for a view above the horizon.
+pub fn trace_slice_with(
+    scene: &SliceScene,
+    point: &SurfacePoint,
+    view: Vec3,
+    lobes: Option<&MaterialLobes>,
+    settings: &SliceSettings,
+    seed: u64,
+    stream: u64,
+) -> SliceSamples {
     debug_assert!(settings.validate().is_ok(), "{settings:?}");
     let m = &point.material;
     let n = point.normal.try_normalize().unwrap_or(Vec3::Y);
@@ -256,7 +278,10 @@ pub fn trace_slice(
         return out;
     }
     let frame = Frame::from_normal(n);
-    let lobes = MaterialLobes::fit(m, view, settings.material_samples);
+    let Some(lobes) = lobes else {
+        debug_assert!(false, "no eq. 9 lobes for a view above the horizon");
+        return out;
+    };
     let inv_m = 1.0 / settings.paths as f32;
     let mut rng = Rng::new(seed, stream);
     let shift = rng.next_vec2();

@@ -85,7 +85,7 @@ fn bake_is_valid_deterministic_and_equals_its_slices() {
     )
     .expect("bake");
     // (`threads` itself is recorded in the settings, so compare the slices.)
-    assert_eq!(one.views, two.views);
+    assert_eq!((&one.levels, &one.offsets), (&two.levels, &two.offsets));
     assert!(one.slices == two.slices, "the thread count changes nothing");
     // A slice of the bake is the slice of its (vertex, view) stream.
     let vm = crate::sg::transport::vertex_materials(&mesh, &mats);
@@ -95,7 +95,8 @@ fn bake_is_valid_deterministic_and_equals_its_slices() {
         caster: caster.as_ref(),
         vertex_materials: &vm,
     };
-    let nv = one.views.len();
+    let views = one.settings.views();
+    let nv = views.len();
     for (x, v) in [(4, 0), (4, nv - 1), (12, 3)] {
         let p = SurfacePoint {
             position: mesh.positions[x],
@@ -107,10 +108,10 @@ fn bake_is_valid_deterministic_and_equals_its_slices() {
         let direct = transfer_slice(
             &sc,
             &p,
-            one.views[v],
+            views[v],
             &s.slice_settings(),
             s.seed,
-            (x * nv + v) as u64,
+            crate::vmf::refine::slice_stream(x, s.view_level, v),
         );
         assert_eq!(*one.slice(x, v), direct);
     }
@@ -137,8 +138,14 @@ fn validate_catches_broken_bakes() {
     let mut b = good.clone();
     b.slices[0].lobes[0][2].axis = Vec3::ZERO;
     assert!(b.validate().is_err());
+    let mut b = good.clone();
+    b.levels[2] = 2;
+    assert!(b.validate().is_err());
+    let mut b = good.clone();
+    b.offsets[3] += 1;
+    assert!(b.validate().is_err());
     let mut b = good;
-    b.views.pop();
+    b.offsets.pop();
     assert!(b.validate().is_err());
 }
 
@@ -202,16 +209,65 @@ fn parts_of_a_bake_concatenate_to_the_whole() {
     let caster = build_default(&mesh);
     let whole = bake(&mesh, &mats, None, caster.as_ref(), &small()).expect("bake");
     let n = mesh.vertex_count();
-    let mut parts = Vec::new();
+    let mut parts: Option<VmfBake> = None;
     for r in [0..7, 7..7, 7..20, 20..n] {
-        parts
-            .extend(bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r).expect("part"));
+        let p = bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r).expect("part");
+        p.validate().expect("a part is valid");
+        match &mut parts {
+            None => parts = Some(p),
+            Some(all) => all.append(p),
+        }
     }
-    assert!(parts == whole.slices);
+    assert!(parts.as_ref() == Some(&whole));
     for r in [0..n + 1, n + 1..n + 2] {
         assert!(matches!(
             bake_vertices(&mesh, &mats, None, caster.as_ref(), &small(), r),
             Err(BakeError::Settings(_))
         ));
+    }
+}
+
+#[test]
+fn adaptive_bakes_are_valid_split_exactly_and_refuse_bad_levels() {
+    let (mesh, mats) = scene();
+    let caster = build_default(&mesh);
+    let s = VmfBakeSettings {
+        view_level: 2,
+        min_view_level: 0,
+        angular_threshold: 0.05,
+        ..small()
+    };
+    let whole = bake(&mesh, &mats, None, caster.as_ref(), &s).expect("bake");
+    whole.validate().expect("valid");
+    assert!(whole.levels.iter().all(|&l| l <= 2));
+    let n = mesh.vertex_count();
+    let mut parts = bake_vertices(&mesh, &mats, None, caster.as_ref(), &s, 0..10).unwrap();
+    parts.append(bake_vertices(&mesh, &mats, None, caster.as_ref(), &s, 10..n).unwrap());
+    assert!(parts == whole);
+    // A level outside min_view_level..=view_level is invalid.
+    let mut b = whole.clone();
+    let l = b.levels[0];
+    b.levels[0] = 3;
+    assert!(b.validate().is_err() || l == 3);
+    for (bad, name) in [
+        (
+            VmfBakeSettings {
+                min_view_level: 3,
+                ..s
+            },
+            "min_view_level",
+        ),
+        (
+            VmfBakeSettings {
+                angular_threshold: -1.0,
+                ..s
+            },
+            "angular_threshold",
+        ),
+    ] {
+        match bake(&mesh, &mats, None, caster.as_ref(), &bad) {
+            Err(BakeError::Settings(m)) => assert!(m.contains(name), "{m}"),
+            other => panic!("{name}: {other:?}"),
+        }
     }
 }
