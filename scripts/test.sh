@@ -15,3 +15,7 @@ echo "== python: tools/test_mitsuba_reference.py"
 "$py" tools/test_mitsuba_reference.py
 echo "== cargo test --release --workspace"
 cargo test --release --workspace
+# The binary's optional GPU renderer (`--features gpu`, relight-gpu on Vulkan: lavapipe from
+# scripts/setup.sh where there is no GPU); relight-gpu's own tests ran in the workspace above.
+echo "== cargo test --release -p relight-cli --features gpu --test gpu"
+cargo test --release -p relight-cli --features gpu --test gpu

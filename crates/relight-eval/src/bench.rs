@@ -27,12 +27,16 @@
 //!     block of vertices against casting the same rays), extrapolated to the whole mesh; the
 //!     illumination cut at the budgets 128, 256, 512; the per-pixel merge kernel; light-tree
 //!     variants.
+//! 11. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
+//!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
 //! repeated calls after a warm-up) and [`process_cpu_ms`] (CPU time of all threads, which a
 //! machine shared with other jobs does not inflate).
 
 pub mod cuts_bake;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod hybrid;
 pub mod prefilter;
 pub mod projection;
@@ -211,7 +215,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 11] = [
+pub const SECTIONS: [&str; 12] = [
     "rays",
     "sh-bake",
     "shard",
@@ -223,6 +227,7 @@ pub const SECTIONS: [&str; 11] = [
     "sg-bake",
     "sg-frame",
     "cuts-bake",
+    "gpu",
 ];
 
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
@@ -303,6 +308,16 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
         cuts_bake::sections(&a.bake_mesh, &a.data, a.quick)?
             .into_iter()
             .for_each(&mut push);
+    }
+    if on("gpu") {
+        #[cfg(feature = "gpu")]
+        gpu::sections(a.quick)?.into_iter().for_each(&mut push);
+        #[cfg(not(feature = "gpu"))]
+        if !a.only.is_empty() {
+            return Err(EvalError::Options(
+                "bench: section 'gpu' needs a relight built with `--features gpu`".into(),
+            ));
+        }
     }
     Ok(report)
 }

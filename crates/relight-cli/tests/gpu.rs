@@ -1,0 +1,139 @@
+//! `relight render --gpu` as a user runs it: the GPU frame next to the CPU frame of the same
+//! bundle (feature `gpu`), a clear message when the binary was built without the feature,
+//! and without a Vulkan driver a message saying what to install, a non-zero exit, no output,
+//! and the CPU render still working. `scripts/test.sh` runs this file with `--features gpu`.
+
+use std::path::Path;
+use std::process::{Command, Output};
+mod common;
+use common::{assert_clean_failure, relight, stderr, tmpdir};
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A bundle of a Lambert sphere on a plane under the procedural sky, in `dir`.
+fn bundle(dir: &Path) -> std::path::PathBuf {
+    let scene = dir.join("scene.json");
+    std::fs::write(
+        &scene,
+        r#"{"shapes": [{"type": "sphere", "center": [0, 0.6, 0], "radius": 0.5, "rings": 16,
+              "material": {"type": "lambert", "albedo": [0.5, 0.5, 0.5]}},
+             {"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 8}],
+           "environment": {"type": "sky", "sun_elevation_deg": 40, "sun_azimuth_deg": 30,
+                           "turbidity": 3, "ground_albedo": [0.3, 0.3, 0.3]},
+           "camera": {"origin": [0, 1.5, 3], "target": [0, 0.4, 0], "up": [0, 1, 0],
+                      "fov_deg": 40, "width": 64, "height": 48}}"#,
+    )
+    .unwrap();
+    let b = dir.join("b.relight");
+    let o = relight(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&b),
+        "--samples",
+        "32",
+        "--sh-order",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    b
+}
+
+/// `relight` with extra environment variables.
+fn relight_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_relight"));
+    c.args(args);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().unwrap()
+}
+
+fn read(p: &Path) -> Vec<glam::Vec3> {
+    relight_render::read_image(p).unwrap().pixels
+}
+
+#[test]
+fn render_gpu_matches_the_cpu_render_or_says_how_to_get_it() {
+    let dir = tmpdir("gpu", "render");
+    let b = bundle(&dir);
+    let (cpu, gpu) = (dir.join("cpu.exr"), dir.join("gpu.exr"));
+    for method in ["sh", "hybrid"] {
+        let extra: &[&str] = if method == "hybrid" {
+            &["--shadow-map-size", "512"]
+        } else {
+            &[]
+        };
+        let mut a = vec!["render", s(&b), "--method", method, "-o", s(&cpu)];
+        a.extend(extra);
+        let o = relight(&a);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut a = vec![
+            "render",
+            s(&b),
+            "--method",
+            method,
+            "--gpu",
+            "--json",
+            "-o",
+            s(&gpu),
+        ];
+        a.extend(extra);
+        let o = relight(&a);
+        if !cfg!(feature = "gpu") {
+            assert_clean_failure(&o, "--features gpu", &gpu);
+            return;
+        }
+        if !o.status.success() && stderr(&o).contains("no Vulkan GPU adapter") {
+            relight_testdata::skip(&format!("no Vulkan adapter: {}", stderr(&o)));
+            return;
+        }
+        assert!(o.status.success(), "{}", stderr(&o));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let frame = &j["gpu"]["frame"];
+        assert!(
+            frame["adapter"].as_str().is_some_and(|a| !a.is_empty()),
+            "{j}"
+        );
+        assert!(frame["draw_calls"].as_u64().unwrap() >= 2, "{j}");
+        // Same image up to f32 rounding (relight-gpu's tests bound the differences pixel by
+        // pixel; here the mean over lit pixels, silhouettes included, within 1e-3).
+        let (c, g) = (read(&cpu), read(&gpu));
+        let (mut sum, mut n) = (0.0f64, 0);
+        for (c, g) in c.iter().zip(&g) {
+            if c.max_element() > 0.0 {
+                sum += ((*g - *c).abs().max_element() / c.max_element()) as f64;
+                n += 1;
+            }
+        }
+        assert!(n > 1000, "{method}: {n} lit pixels");
+        assert!(
+            sum / (n as f64) < 1e-3,
+            "{method}: mean relative difference {}",
+            sum / n as f64
+        );
+    }
+}
+
+#[test]
+fn without_a_vulkan_driver_render_gpu_says_what_to_install_and_the_cpu_render_works() {
+    if !cfg!(feature = "gpu") {
+        return; // the build without the feature is tested above
+    }
+    let dir = tmpdir("gpu", "no-driver");
+    let b = bundle(&dir);
+    let out = dir.join("x.png");
+    // The Vulkan loader reads its drivers from these lists: point them at nothing.
+    let none = [
+        ("VK_DRIVER_FILES", "/nonexistent/icd.json"),
+        ("VK_ICD_FILENAMES", "/nonexistent/icd.json"),
+    ];
+    let o = relight_env(&["render", s(&b), "--gpu", "-o", s(&out)], &none);
+    assert_clean_failure(&o, "mesa-vulkan-drivers", &out);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let o = relight_env(&["render", s(&b), "-o", s(&out)], &none);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.is_file());
+}
