@@ -127,7 +127,7 @@ impl Gpu {
         uploaded: &mut u64,
     ) -> Result<wgpu::Buffer, GpuError> {
         if usage.contains(wgpu::BufferUsages::STORAGE)
-            && data.len() as u64 > self.limits.max_storage_buffer_binding_size as u64
+            && data.len() as u64 > self.limits.max_storage_buffer_binding_size
         {
             return Err(GpuError::Unsupported(format!(
                 "{label}: {} bytes exceed the device's storage buffer limit of {} bytes",
@@ -151,7 +151,7 @@ impl Gpu {
         if data.is_empty() {
             return;
         }
-        if data.len() % 4 == 0 {
+        if data.len().is_multiple_of(4) {
             self.queue.write_buffer(b, 0, data);
         } else {
             let mut v = data.to_vec();

@@ -189,11 +189,11 @@ impl Diff {
             coverage_diff: 0,
             rel: vec![],
         };
-        for k in 0..img.pixels.len() {
-            if (cov[k] - gpu.coverage[k]).abs() > 1e-6 {
+        for (k, (&cc, &gc)) in cov.iter().zip(&gpu.coverage).enumerate() {
+            if (cc - gc).abs() > 1e-6 {
                 d.coverage_diff += 1;
             }
-            if cov[k] >= 1.0 && gpu.coverage[k] >= 1.0 {
+            if cc >= 1.0 && gc >= 1.0 {
                 d.compared += 1;
                 let (c, g) = (img.pixels[k], gpu.image.pixels[k]);
                 let e = (g - c).abs().max_element() / c.max_element().max(floor);
