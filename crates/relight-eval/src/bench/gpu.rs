@@ -117,7 +117,7 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
         &sg_settings,
     )?;
     let title = format!(
-        "GPU renderer: frames at 1280 x 720 on {} (lavapipe is a CPU rasteriser: correctness-level times; the counts carry over to a GPU)",
+        "GPU renderer: frames at 1280 x 720, 1 sample per pixel, on {} (lavapipe is a CPU rasteriser: correctness-level times; the counts carry over to a GPU)",
         gpu.adapter_name()
     );
     let mut frames = Section::new(
@@ -220,6 +220,10 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
         ),
         med(runs, || drop(decompose_env(env, &d))),
     );
+    row(
+        "environment decomposition (hybrid; 6 x 64 x 64 cube map, sky + 3 discs)",
+        median((0..runs).map(|_| super::hybrid::bench_decompose()).collect()),
+    );
     if let Baked::Sg(b) = &sg {
         let r = relight_render::shade_sg::SgRenderer::new(&b.scene.mesh, &b.bake);
         let l = relight_render::shade_sg::SgLighting::new(&sg_scene.env, b.bake.diffuse.order, 128);
@@ -232,6 +236,11 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
             med(runs, || drop(r.prepare(&l, eye))),
         );
     }
-    row("light cut (cuts: no GPU renderer yet)", f64::NAN);
+    cpu.row(vec![
+        json!("light cut (cuts: no GPU renderer yet, not measured here)"),
+        json!(null),
+        json!(BUDGET_MS),
+        json!("n/a"),
+    ]);
     Ok(vec![frames, cpu])
 }
