@@ -64,7 +64,6 @@ pub(crate) fn gpu_lights(
 /// What the prepared environment gives the GPU.
 struct Prepared {
     lights: Vec<GpuLight>,
-    light_buffer: wgpu::Buffer,
     shadow: wgpu::Texture,
     group: wgpu::BindGroup,
     shadow_group: wgpu::BindGroup,
@@ -330,7 +329,6 @@ impl GpuFrame for HybridGpuFrame<'_> {
         );
         self.prepared = Some(Prepared {
             lights,
-            light_buffer,
             shadow,
             group,
             shadow_group,
@@ -361,7 +359,6 @@ impl GpuFrame for HybridGpuFrame<'_> {
         self.shadow_passes(&mut enc, &mut stats);
         self.gpu.queue.submit([enc.finish()]);
         let p = self.prepared.as_ref().expect("checked above");
-        let _ = &p.light_buffer;
         self.raster.draw(
             self.gpu,
             &self.baked.scene.mesh,
@@ -371,7 +368,6 @@ impl GpuFrame for HybridGpuFrame<'_> {
             &p.group,
             self.mesh.triangles,
             &mut stats,
-            |_, _| {},
         )
     }
 

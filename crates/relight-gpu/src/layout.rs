@@ -2,7 +2,8 @@
 //! asserted at compile time, and its WGSL twin named in its doc comment. A field added here
 //! must be added to the twin in the same order (WGSL's `vec4<f32>` is 16 bytes, 16-aligned;
 //! scalars are 4 bytes; every struct here is a multiple of 16 bytes so arrays of it need no
-//! padding on either side).
+//! padding on either side). The tests parse the shaders with naga (wgpu's WGSL front-end)
+//! and check every twin's size and field offsets against the Rust struct.
 
 use bytemuck::{Pod, Zeroable};
 use std::mem::size_of;
@@ -133,3 +134,143 @@ pub struct GpuSgParams {
     pub ln_lambda: [[f32; 4]; MAX_CHAIN_LEVELS / 4],
 }
 const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS);
+
+/// Each Rust struct against the WGSL that declares its twin, parsed by naga (wgpu's own
+/// front-end) and laid out as the GPU sees it.
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::offset_of;
+
+    const COMMON: &str = include_str!("shaders/common.wgsl");
+    const LIGHT: &str = include_str!("shaders/light.wgsl");
+
+    /// Size and member offsets of struct `name` in the WGSL `source`, as naga lays it out for
+    /// the GPU.
+    fn wgsl_layout(source: &str, name: &str) -> (u32, Vec<u32>) {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (handle, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no struct {name}"));
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else {
+            panic!("{name} is not a struct");
+        };
+        (
+            layouter[handle].size,
+            members.iter().map(|m| m.offset).collect(),
+        )
+    }
+
+    /// Every Rust struct against its WGSL twin: same size, same field offsets in order.
+    #[test]
+    fn every_struct_matches_its_wgsl_twin() {
+        let sh_shade = include_str!("shaders/sh_shade.wgsl");
+        let resolve = include_str!("shaders/resolve.wgsl");
+        let hybrid = [COMMON, LIGHT, include_str!("shaders/hybrid.wgsl")].concat();
+        let sg = [COMMON, include_str!("shaders/sg.wgsl")].concat();
+        let o = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
+        type C = GpuCamera;
+        type L = GpuLight;
+        type S = GpuSgParams;
+        let cases: [(&str, &str, usize, Vec<u32>); 7] = [
+            (
+                &sg,
+                "Camera",
+                size_of::<C>(),
+                o(&[
+                    offset_of!(C, origin),
+                    offset_of!(C, right),
+                    offset_of!(C, up),
+                    offset_of!(C, forward),
+                    offset_of!(C, tan_half),
+                    offset_of!(C, near),
+                    offset_of!(C, pad),
+                ]),
+            ),
+            (
+                sh_shade,
+                "ShParams",
+                size_of::<GpuShParams>(),
+                o(&[0, 4, 8, 12]),
+            ),
+            (
+                resolve,
+                "ResolveParams",
+                size_of::<GpuResolveParams>(),
+                o(&[0, 4, 8, 12]),
+            ),
+            (
+                &hybrid,
+                "Light",
+                size_of::<L>(),
+                o(&[
+                    offset_of!(L, dir),
+                    offset_of!(L, u),
+                    offset_of!(L, v),
+                    offset_of!(L, center),
+                    offset_of!(L, power),
+                    offset_of!(L, kernel),
+                    offset_of!(L, taps),
+                    offset_of!(L, size),
+                    offset_of!(L, area),
+                ]),
+            ),
+            (
+                &hybrid,
+                "HybridParams",
+                size_of::<GpuHybridParams>(),
+                o(&[0, 4, 8, 12]),
+            ),
+            (
+                &sg,
+                "Lobe",
+                size_of::<GpuLobe>(),
+                o(&[
+                    offset_of!(GpuLobe, axis_sharpness),
+                    offset_of!(GpuLobe, amplitude),
+                ]),
+            ),
+            (
+                &sg,
+                "SgParams",
+                size_of::<S>(),
+                o(&[
+                    offset_of!(S, lobe_count),
+                    offset_of!(S, direct_count),
+                    offset_of!(S, indirect_count),
+                    offset_of!(S, level_count),
+                    offset_of!(S, scale),
+                    offset_of!(S, energy_blend),
+                    offset_of!(S, match_lobes),
+                    offset_of!(S, base_size),
+                    offset_of!(S, ln_lambda),
+                ]),
+            ),
+        ];
+        for (source, name, size, offsets) in cases {
+            let (wsize, woffsets) = wgsl_layout(source, name);
+            assert_eq!(wsize as usize, size, "size of {name}");
+            assert_eq!(woffsets, offsets, "field offsets of {name}");
+        }
+    }
+
+    /// The shadow pass's shader (no Rust struct of its own) parses with the shared snippet.
+    #[test]
+    fn every_shader_parses() {
+        for (name, src) in [
+            (
+                "shadow",
+                [LIGHT, include_str!("shaders/shadow.wgsl")].concat(),
+            ),
+            ("sh", [COMMON, include_str!("shaders/sh.wgsl")].concat()),
+        ] {
+            naga::front::wgsl::parse_str(&src)
+                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+        }
+    }
+}

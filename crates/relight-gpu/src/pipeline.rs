@@ -346,8 +346,8 @@ impl Raster {
         self.targets.as_ref().expect("targets made above")
     }
 
-    /// Write the camera, run `before` (shadow passes), draw `3 * triangles` vertices with
-    /// `pipeline` and `group` into the sample target, resolve and read back.
+    /// Write the camera, draw `3 * triangles` vertices with `pipeline` and `group` into the
+    /// sample target, resolve and read back.
     #[allow(clippy::too_many_arguments)]
     pub fn draw(
         &mut self,
@@ -359,7 +359,6 @@ impl Raster {
         group: &wgpu::BindGroup,
         triangles: u32,
         stats: &mut FrameStats,
-        before: impl FnOnce(&mut wgpu::CommandEncoder, &mut FrameStats),
     ) -> Result<GpuOutput, GpuError> {
         let t0 = std::time::Instant::now();
         let cam = camera_uniform(camera, mesh);
@@ -384,7 +383,6 @@ impl Raster {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        before(&mut enc, stats);
         let rl = self.resolve_layout.clone();
         let rp = self.resolve.clone();
         let params = self.resolve_params.clone();

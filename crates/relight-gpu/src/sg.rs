@@ -250,7 +250,6 @@ impl GpuFrame for SgGpuFrame<'_> {
             group,
             self.mesh.triangles,
             &mut stats,
-            |_, _| {},
         )
     }
 

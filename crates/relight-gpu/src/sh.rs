@@ -220,7 +220,6 @@ impl GpuFrame for ShGpuFrame<'_> {
             &self.group,
             self.mesh.triangles,
             &mut stats,
-            |_, _| {},
         )
     }
 
