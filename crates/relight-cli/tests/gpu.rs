@@ -137,3 +137,73 @@ fn without_a_vulkan_driver_render_gpu_says_what_to_install_and_the_cpu_render_wo
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file());
 }
+
+#[test]
+fn render_gpu_of_an_sg_bundle_matches_the_cpu_render() {
+    if !cfg!(feature = "gpu") {
+        return; // the build without the feature is tested above
+    }
+    let dir = tmpdir("gpu", "sg");
+    let scene = dir.join("scene.json");
+    std::fs::write(
+        &scene,
+        r#"{"shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "rings": 12,
+              "material": {"type": "ggx_conductor", "specular": [0.9, 0.7, 0.4], "alpha": 0.2}}],
+           "environment": {"type": "sky", "sun_elevation_deg": 40, "sun_azimuth_deg": 30,
+                           "turbidity": 3, "ground_albedo": [0.3, 0.3, 0.3]},
+           "camera": {"origin": [0, 0.5, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+                      "fov_deg": 40, "width": 64, "height": 48}}"#,
+    )
+    .unwrap();
+    let b = dir.join("sg.relight");
+    let o = relight(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&b),
+        "--method",
+        "sg",
+        "--direct-res",
+        "8",
+        "--indirect-lobes",
+        "0",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (cpu, gpu) = (dir.join("cpu.exr"), dir.join("gpu.exr"));
+    let o = relight(&["render", s(&b), "--prefilter-size", "64", "-o", s(&cpu)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = relight(&[
+        "render",
+        s(&b),
+        "--prefilter-size",
+        "64",
+        "--gpu",
+        "-o",
+        s(&gpu),
+    ]);
+    if !o.status.success() && stderr(&o).contains("no Vulkan GPU adapter") {
+        relight_testdata::skip(&format!("no Vulkan adapter: {}", stderr(&o)));
+        return;
+    }
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (c, g) = (read(&cpu), read(&gpu));
+    let (mut sum, mut n) = (0.0f64, 0);
+    for (c, g) in c.iter().zip(&g) {
+        if c.max_element() > 0.0 {
+            sum += ((*g - *c).abs().max_element() / c.max_element()) as f64;
+            n += 1;
+        }
+    }
+    // The sphere covers about a third of the image; mean over lit pixels, silhouettes
+    // included, within 1e-3 (relight-gpu's tests bound every pixel).
+    assert!(n > 500, "{n} lit pixels");
+    assert!(
+        sum / (n as f64) < 1e-3,
+        "mean relative difference {}",
+        sum / n as f64
+    );
+    // The bad options of the GPU path are refused by name, with no output.
+    let bad = dir.join("bg.exr");
+    let o = relight(&["render", s(&b), "--gpu", "--background", "-o", s(&bad)]);
+    assert_clean_failure(&o, "background", &bad);
+}
