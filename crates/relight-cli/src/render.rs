@@ -61,7 +61,7 @@ pub struct Args {
     /// Cuts options.
     #[command(flatten)]
     pub cuts: CutsFrameSettings,
-    /// Render the frame on the GPU (wgpu, Vulkan; sh, hybrid and sg, no --background yet).
+    /// Render the frame on the GPU (wgpu, Vulkan; sh, hybrid and sg).
     /// Needs a build with `--features gpu` and a Vulkan driver (Debian: mesa-vulkan-drivers).
     #[arg(long)]
     pub gpu: bool,

@@ -243,6 +243,7 @@ impl GpuFrame for HybridGpuFrame<'_> {
             ..Default::default()
         };
         let t1 = Instant::now();
+        self.raster.set_environment(self.gpu, env, &mut stats)?;
         self.shade.shade(self.gpu, &light, &mut stats)?;
         let key: ShadowKey = (
             self.shadows.map_size,

@@ -52,10 +52,34 @@ const _: () = assert!(size_of::<GpuShParams>() == 16);
 pub struct GpuResolveParams {
     /// Samples per pixel along each axis.
     pub supersample: u32,
-    /// Padding.
-    pub pad: [u32; 3],
+    /// 1: uncovered samples get the environment's radiance ([`GpuBackground`]); 0: black.
+    pub background: u32,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
 }
 const _: () = assert!(size_of::<GpuResolveParams>() == 16);
+
+/// The environment behind the objects (`relight_scene::scene::Environment::radiance`: the
+/// map's bilinear `eval` of `env_from_world * dir`, times `scale`). The texels go in a
+/// storage buffer, row-major as `EnvMap::texels`.
+/// WGSL twin: `Background` in `shaders/resolve.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuBackground {
+    /// Columns of `env_from_world` (w unused).
+    pub env_from_world: [[f32; 4]; 3],
+    /// 0: latlong, 1: cube (`EnvLayout`; probes are not drawn on the GPU yet).
+    pub map_layout: u32,
+    /// Map width (latlong width, cube face size).
+    pub width: u32,
+    /// Map height (latlong height, 6 x face size).
+    pub height: u32,
+    /// Radiance scale.
+    pub scale: f32,
+}
+const _: () = assert!(size_of::<GpuBackground>() == 64);
 
 /// One extracted light of `hybrid` with its shadow map's frame and filter
 /// (`relight_render::hybrid::HybridLight` + `relight_render::shadowmap::ShadowMap`).
@@ -170,14 +194,15 @@ mod tests {
     #[test]
     fn every_struct_matches_its_wgsl_twin() {
         let sh_shade = include_str!("shaders/sh_shade.wgsl");
-        let resolve = include_str!("shaders/resolve.wgsl");
+        let resolve_src = [COMMON, include_str!("shaders/resolve.wgsl")].concat();
+        let resolve = resolve_src.as_str();
         let hybrid = [COMMON, LIGHT, include_str!("shaders/hybrid.wgsl")].concat();
         let sg = [COMMON, include_str!("shaders/sg.wgsl")].concat();
         let o = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
         type C = GpuCamera;
         type L = GpuLight;
         type S = GpuSgParams;
-        let cases: [(&str, &str, usize, Vec<u32>); 7] = [
+        let cases: [(&str, &str, usize, Vec<u32>); 8] = [
             (
                 &sg,
                 "Camera",
@@ -203,6 +228,18 @@ mod tests {
                 "ResolveParams",
                 size_of::<GpuResolveParams>(),
                 o(&[0, 4, 8, 12]),
+            ),
+            (
+                resolve,
+                "Background",
+                size_of::<GpuBackground>(),
+                o(&[
+                    offset_of!(GpuBackground, env_from_world),
+                    offset_of!(GpuBackground, map_layout),
+                    offset_of!(GpuBackground, width),
+                    offset_of!(GpuBackground, height),
+                    offset_of!(GpuBackground, scale),
+                ]),
             ),
             (
                 &hybrid,

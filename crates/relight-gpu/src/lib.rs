@@ -23,7 +23,8 @@
 //! * One `.wgsl` file per method (`sh.wgsl`, `hybrid.wgsl` + `shadow.wgsl`, `sg.wgsl`), with
 //!   `common.wgsl` (camera, projection), `light.wgsl` and `sh_shade.wgsl` shared; a method
 //!   adds its shader and one arm of [`frame_of`].
-//! * No background yet: [`FrameOptions::background`] is refused.
+//! * The background ([`FrameOptions::background`]) is drawn in the resolve pass for latlong
+//!   and cube maps (the CPU's bilinear fetch); an angular probe's background is refused.
 //!
 //! ```no_run
 //! use relight_gpu::{frame_of, Gpu};
@@ -115,8 +116,8 @@ pub trait GpuFrame {
     /// Render `camera` under the prepared environment.
     ///
     /// # Errors
-    /// No environment prepared, options the GPU renderer does not support (background), an
-    /// image beyond the device's texture size, a GPU error.
+    /// No environment prepared, options the GPU renderer does not support (an angular
+    /// probe's background), an image beyond the device's texture size, a GPU error.
     fn render(&mut self, camera: &Camera, opts: &FrameOptions) -> Result<GpuOutput, GpuError>;
 
     /// One line saying what is rendered.

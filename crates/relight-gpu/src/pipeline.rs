@@ -1,13 +1,15 @@
 //! What every method's frame shares: explicit bind-group layouts, the mesh on the GPU, the
 //! camera, the sample and output targets, the resolve pass and the read-back.
 
-use crate::layout::{GpuCamera, GpuResolveParams};
-use crate::{FrameStats, Gpu, GpuError, GpuOutput};
+use crate::layout::{GpuBackground, GpuCamera, GpuResolveParams};
+use crate::{FrameStats, Gpu, GpuError, GpuOutput, PrepareStats};
 use glam::Vec3;
 use relight_method::FrameOptions;
 use relight_render::Image;
 use relight_scene::camera::Camera;
 use relight_scene::mesh::TriMesh;
+use relight_scene::scene::Environment;
+use relight_sphere::envmap::EnvLayout;
 
 /// Colour format of the sample and output targets: linear float radiance, alpha = coverage.
 pub(crate) const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -254,6 +256,10 @@ pub(crate) struct Raster {
     resolve: wgpu::RenderPipeline,
     resolve_params: wgpu::Buffer,
     targets: Option<Targets>,
+    /// The background's parameters and texels (zeros until an environment is set).
+    background: (wgpu::Buffer, wgpu::Buffer),
+    /// Why the prepared environment cannot be drawn as background, if it cannot.
+    no_background: Option<String>,
 }
 
 impl Raster {
@@ -262,9 +268,15 @@ impl Raster {
             gpu,
             "resolve",
             wgpu::ShaderStages::FRAGMENT,
-            &[B::Tex2d, B::Uniform],
+            &[B::Tex2d, B::Uniform, B::Uniform, B::Uniform, B::Storage],
         );
-        let module = gpu.shader("resolve", &[include_str!("shaders/resolve.wgsl")]);
+        let module = gpu.shader(
+            "resolve",
+            &[
+                include_str!("shaders/common.wgsl"),
+                include_str!("shaders/resolve.wgsl"),
+            ],
+        );
         let resolve = render_pipeline(gpu, "resolve", &module, &resolve_layout, true, None);
         let cam = [GpuCamera::zeroed_default()];
         Ok(Raster {
@@ -273,7 +285,9 @@ impl Raster {
                 "resolve params",
                 bytemuck::bytes_of(&GpuResolveParams {
                     supersample: 1,
-                    pad: [0; 3],
+                    background: 0,
+                    width: 1,
+                    height: 1,
                 }),
                 UNIFORM,
                 uploaded,
@@ -281,17 +295,57 @@ impl Raster {
             resolve_layout,
             resolve,
             targets: None,
+            background: (
+                gpu.buffer("background", &[0; 64], UNIFORM, uploaded)?,
+                gpu.buffer("background texels", &[0; 16], STORAGE, uploaded)?,
+            ),
+            no_background: Some("no environment prepared".into()),
         })
+    }
+
+    /// Upload `env`'s map, rotation and scale for the background (latlong and cube maps;
+    /// an angular probe is kept out, and refused only if a frame asks for a background).
+    pub fn set_environment(
+        &mut self,
+        gpu: &Gpu,
+        env: &Environment,
+        stats: &mut PrepareStats,
+    ) -> Result<(), GpuError> {
+        let map = &env.map;
+        let layout = match map.layout() {
+            EnvLayout::LatLong => 0,
+            EnvLayout::Cube => 1,
+            EnvLayout::Probe => {
+                self.no_background =
+                    Some("the GPU renderer draws no angular-probe background yet".into());
+                return Ok(());
+            }
+        };
+        let m = env.env_from_world();
+        let params = GpuBackground {
+            env_from_world: [v4(m.x_axis, 0.0), v4(m.y_axis, 0.0), v4(m.z_axis, 0.0)],
+            map_layout: layout,
+            width: map.width() as u32,
+            height: map.height() as u32,
+            scale: env.scale,
+        };
+        let texels: Vec<[f32; 4]> = map.texels().iter().map(|&t| v4(t, 0.0)).collect();
+        let up = &mut stats.bytes_uploaded;
+        let p = gpu.buffer("background", bytemuck::bytes_of(&params), UNIFORM, up)?;
+        let t = gpu.buffer(
+            "background texels",
+            bytemuck::cast_slice(&texels),
+            STORAGE,
+            up,
+        )?;
+        self.background = (p, t);
+        self.no_background = None;
+        Ok(())
     }
 
     /// Check `opts` and the image size against the device.
     pub fn check(gpu: &Gpu, camera: &Camera, opts: &FrameOptions) -> Result<(), GpuError> {
         relight_method::check_frame_options(opts, camera)?;
-        if opts.background {
-            return Err(GpuError::Unsupported(
-                "the GPU renderer does not draw the environment background yet (drop --background or --gpu)".into(),
-            ));
-        }
         let max = gpu.limits().max_texture_dimension_2d;
         let (w, h) = (
             camera.width as u64 * opts.supersample as u64,
@@ -360,6 +414,11 @@ impl Raster {
         triangles: u32,
         stats: &mut FrameStats,
     ) -> Result<GpuOutput, GpuError> {
+        if let (true, Some(why)) = (opts.background, &self.no_background) {
+            return Err(GpuError::Unsupported(format!(
+                "background: {why} (drop --background, or --gpu)"
+            )));
+        }
         let t0 = std::time::Instant::now();
         let cam = camera_uniform(camera, mesh);
         gpu.write(
@@ -372,7 +431,9 @@ impl Raster {
             &self.resolve_params,
             bytemuck::bytes_of(&GpuResolveParams {
                 supersample: ss,
-                pad: [0; 3],
+                background: opts.background as u32,
+                width: camera.width,
+                height: camera.height,
             }),
             &mut stats.bytes_uploaded,
         );
@@ -386,6 +447,8 @@ impl Raster {
         let rl = self.resolve_layout.clone();
         let rp = self.resolve.clone();
         let params = self.resolve_params.clone();
+        let camera_buffer = self.camera.clone();
+        let (bg, texels) = self.background.clone();
         let t = self.targets(gpu, w, h, ss);
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -421,6 +484,9 @@ impl Raster {
             &[
                 wgpu::BindingResource::TextureView(&t.samples),
                 params.as_entire_binding(),
+                camera_buffer.as_entire_binding(),
+                bg.as_entire_binding(),
+                texels.as_entire_binding(),
             ],
         );
         {

@@ -109,6 +109,7 @@ impl GpuFrame for SgGpuFrame<'_> {
             ..Default::default()
         };
         let t1 = Instant::now();
+        self.raster.set_environment(self.gpu, env, &mut stats)?;
         let pre = lighting.prefiltered();
         let levels = pre.levels();
         let n = levels[0].size;

@@ -197,6 +197,7 @@ impl GpuFrame for ShGpuFrame<'_> {
             ..Default::default()
         };
         let t1 = Instant::now();
+        self.raster.set_environment(self.gpu, env, &mut stats)?;
         self.shade.shade(self.gpu, &light, &mut stats)?;
         stats.gpu_ms = t1.elapsed().as_secs_f64() * 1e3;
         self.ready = true;
