@@ -297,8 +297,8 @@ fn the_background_is_the_cpu_frames() {
     // bilinear fetch, with the direction's atan2 and acos in the GPU's f32, within 1e-3.
     let (img, cov) = &c;
     let mut n = 0;
-    for k in 0..img.pixels.len() {
-        if cov[k] == 0.0 && g.coverage[k] == 0.0 {
+    for (k, (&cc, &gc)) in cov.iter().zip(&g.coverage).enumerate() {
+        if cc == 0.0 && gc == 0.0 {
             let (cp, gp) = (img.pixels[k], g.image.pixels[k]);
             let e = (gp - cp).abs().max_element() / cp.max_element();
             assert!(e < REL_TOL, "background pixel {k}: cpu {cp} gpu {gp}");
