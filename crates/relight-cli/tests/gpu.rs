@@ -237,3 +237,30 @@ fn render_gpu_of_an_sg_bundle_matches_the_cpu_render() {
         "mean relative difference with background {mean}"
     );
 }
+
+#[test]
+fn wgpu_adapter_name_picks_the_adapter_or_lists_them() {
+    if !cfg!(feature = "gpu") {
+        return;
+    }
+    let dir = tmpdir("gpu", "adapter");
+    let b = bundle(&dir);
+    let out = dir.join("x.exr");
+    let o = relight_env(
+        &["render", s(&b), "--gpu", "-o", s(&out)],
+        &[("WGPU_ADAPTER_NAME", "no-such-adapter")],
+    );
+    assert_clean_failure(&o, "WGPU_ADAPTER_NAME=no-such-adapter matches none", &out);
+    // Lavapipe by name (wgpu calls it llvmpipe), where it is installed.
+    let o = relight_env(
+        &["render", s(&b), "--gpu", "--json", "-o", s(&out)],
+        &[("WGPU_ADAPTER_NAME", "llvmpipe")],
+    );
+    if !o.status.success() {
+        relight_testdata::skip(&format!("lavapipe not installed: {}", stderr(&o)));
+        return;
+    }
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let name = j["gpu"]["frame"]["adapter"].as_str().unwrap();
+    assert!(name.to_lowercase().contains("llvmpipe"), "{name}");
+}
