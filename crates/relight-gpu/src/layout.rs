@@ -131,6 +131,19 @@ pub struct GpuLobe {
 }
 const _: () = assert!(size_of::<GpuLobe>() == 32);
 
+/// The SG matching pass's parameters. WGSL twin: `MatchParams` in `shaders/sg_match.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuMatchParams {
+    /// Triangles of the mesh.
+    pub triangle_count: u32,
+    /// Invocations per row of the 2D dispatch (`workgroups_x * 64`).
+    pub row_stride: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+const _: () = assert!(size_of::<GpuMatchParams>() == 16);
+
 /// Most levels of the prefiltered chain (a 1024-texel finest level has 11).
 pub const MAX_CHAIN_LEVELS: usize = 16;
 
@@ -197,12 +210,20 @@ mod tests {
         let resolve_src = [COMMON, include_str!("shaders/resolve.wgsl")].concat();
         let resolve = resolve_src.as_str();
         let hybrid = [COMMON, LIGHT, include_str!("shaders/hybrid.wgsl")].concat();
-        let sg = [COMMON, include_str!("shaders/sg.wgsl")].concat();
+        let lobes = include_str!("shaders/sg_lobes.wgsl");
+        let sg = [COMMON, lobes, include_str!("shaders/sg.wgsl")].concat();
+        let sg_match = [lobes, include_str!("shaders/sg_match.wgsl")].concat();
         let o = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
         type C = GpuCamera;
         type L = GpuLight;
         type S = GpuSgParams;
-        let cases: [(&str, &str, usize, Vec<u32>); 8] = [
+        let cases: [(&str, &str, usize, Vec<u32>); 9] = [
+            (
+                &sg_match,
+                "MatchParams",
+                size_of::<GpuMatchParams>(),
+                o(&[0, 4, 8, 12]),
+            ),
             (
                 &sg,
                 "Camera",

@@ -3,11 +3,12 @@
 //! uploaded as a 6-layer texture with one mip level per chain level (level `k` has face
 //! size `n >> k`, as `default_levels`); per frame, the per-vertex view blend on the CPU
 //! (`SgRenderer::prepare`: view location on the icosahedron, lobe matching and blending,
-//! diffuse SH), the upload of its lobes and diffuse radiance, then the per-pixel lobe blend
-//! and prefiltered fetches (`sg.wgsl`) and the resolve pass.
+//! diffuse SH), the upload of its lobes and diffuse radiance, then the matching of each
+//! triangle's corner lobes (a compute pass, `sg_match.wgsl`), the per-pixel lobe blend and
+//! prefiltered fetches (`sg.wgsl`) and the resolve pass.
 
-use crate::layout::{GpuLobe, GpuSgParams, MAX_CHAIN_LEVELS};
-use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
+use crate::layout::{GpuLobe, GpuMatchParams, GpuSgParams, MAX_CHAIN_LEVELS};
+use crate::pipeline::{self, bind, dispatch_2d, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
 use glam::Vec3;
 use relight_method::sg::{SgBaked, SgFrameSettings};
@@ -30,6 +31,9 @@ pub(crate) struct SgGpuFrame<'a> {
     lobes: wgpu::Buffer,
     diffuse: wgpu::Buffer,
     params: wgpu::Buffer,
+    perms: wgpu::Buffer,
+    matching: wgpu::ComputePipeline,
+    match_group: wgpu::BindGroup,
     prepared: Option<(SgLighting, wgpu::BindGroup)>,
 }
 
@@ -51,12 +55,15 @@ impl<'a> SgGpuFrame<'a> {
                 B::Storage,
                 B::Tex2dArray,
                 B::Uniform,
+                B::Storage,
             ],
         );
+        let lobes_wgsl = include_str!("shaders/sg_lobes.wgsl");
         let module = gpu.shader(
             "sg",
             &[
                 include_str!("shaders/common.wgsl"),
+                lobes_wgsl,
                 include_str!("shaders/sg.wgsl"),
             ],
         );
@@ -78,6 +85,44 @@ impl<'a> SgGpuFrame<'a> {
             UNIFORM,
             &mut up,
         )?;
+        // The matching pass: one permutation per (triangle, component, corner), 2 words each.
+        let perms = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("lobe permutations"),
+            size: (mesh.triangles as u64 * 12 * 4).max(16),
+            usage: STORAGE,
+            mapped_at_creation: false,
+        });
+        let match_layout = pipeline::layout(
+            gpu,
+            "sg match",
+            wgpu::ShaderStages::COMPUTE,
+            &[B::Uniform, B::Uniform, B::Storage, B::Storage, B::StorageRw],
+        );
+        let mmod = gpu.shader(
+            "sg match",
+            &[lobes_wgsl, include_str!("shaders/sg_match.wgsl")],
+        );
+        let matching =
+            pipeline::compute_pipeline(gpu, "sg match", &mmod, "match_triangles", &match_layout);
+        let (_, _, row_stride) = dispatch_2d(mesh.triangles);
+        let mp = GpuMatchParams {
+            triangle_count: mesh.triangles,
+            row_stride,
+            pad: [0; 2],
+        };
+        let mparams = gpu.buffer("match params", bytemuck::bytes_of(&mp), UNIFORM, &mut up)?;
+        let match_group = bind(
+            gpu,
+            "sg match",
+            &match_layout,
+            &[
+                params.as_entire_binding(),
+                mparams.as_entire_binding(),
+                mesh.indices.as_entire_binding(),
+                lobes.as_entire_binding(),
+                perms.as_entire_binding(),
+            ],
+        );
         gpu.check()?;
         Ok(SgGpuFrame {
             gpu,
@@ -91,6 +136,9 @@ impl<'a> SgGpuFrame<'a> {
             lobes,
             diffuse,
             params,
+            perms,
+            matching,
+            match_group,
             prepared: None,
         })
     }
@@ -203,6 +251,7 @@ impl GpuFrame for SgGpuFrame<'_> {
                 self.diffuse.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&view),
                 self.params.as_entire_binding(),
+                self.perms.as_entire_binding(),
             ],
         );
         gpu.check()?;
@@ -242,6 +291,22 @@ impl GpuFrame for SgGpuFrame<'_> {
             &mut stats.bytes_uploaded,
         );
         stats.cpu_ms = t0.elapsed().as_secs_f64() * 1e3;
+        // Match each triangle's corners once (sg_match.wgsl), then shade.
+        let mut enc = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("sg match"),
+            });
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.matching);
+            pass.set_bind_group(0, &self.match_group, &[]);
+            let (x, y, _) = dispatch_2d(self.mesh.triangles);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        stats.passes += 1;
+        self.gpu.queue.submit([enc.finish()]);
         self.raster.draw(
             self.gpu,
             &self.baked.scene.mesh,

@@ -408,6 +408,8 @@ fn sg_frame_matches_the_cpu_frame() {
     // Per frame: the blended lobes (32 bytes each) and diffuse radiance (16) of every vertex.
     let v = b.scene().mesh.vertex_count() as u64;
     assert_eq!(g.stats.bytes_uploaded, v * (2 * 32 + 16) + 80 + 16);
+    // The matching pass (compute), the shading pass, the resolve pass.
+    assert_eq!((g.stats.passes, g.stats.draw_calls), (3, 2));
     Diff::of(&c, &g)
         .check(REL_TOL, MAX_OUTLIERS, REL_TOL)
         .unwrap();
