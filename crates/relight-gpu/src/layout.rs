@@ -52,7 +52,9 @@ const _: () = assert!(size_of::<GpuShParams>() == 16);
 pub struct GpuResolveParams {
     /// Samples per pixel along each axis.
     pub supersample: u32,
-    /// 1: uncovered samples get the environment's radiance ([`GpuBackground`]); 0: black.
+    /// 1 when the frame draws the background ([`GpuBackground`]). The shader does not read
+    /// it: the entry point (`fs_background` or `fs`) decides, so a frame without background
+    /// runs none of its code.
     pub background: u32,
     /// Image width, pixels.
     pub width: u32,

@@ -113,6 +113,25 @@ pub(crate) fn render_pipeline(
     color: bool,
     depth_compare: Option<wgpu::CompareFunction>,
 ) -> wgpu::RenderPipeline {
+    render_pipeline_fs(
+        gpu,
+        label,
+        module,
+        layout,
+        color.then_some("fs"),
+        depth_compare,
+    )
+}
+
+/// [`render_pipeline`] with fragment entry point `fs` (none: depth only).
+pub(crate) fn render_pipeline_fs(
+    gpu: &Gpu,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    fs: Option<&str>,
+    depth_compare: Option<wgpu::CompareFunction>,
+) -> wgpu::RenderPipeline {
     let pl = gpu
         .device
         .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -148,9 +167,9 @@ pub(crate) fn render_pipeline(
                 bias: Default::default(),
             }),
             multisample: Default::default(),
-            fragment: color.then(|| wgpu::FragmentState {
+            fragment: fs.map(|fs| wgpu::FragmentState {
                 module,
-                entry_point: Some("fs"),
+                entry_point: Some(fs),
                 compilation_options: Default::default(),
                 targets: &targets,
             }),
@@ -254,6 +273,7 @@ pub(crate) struct Raster {
     pub camera: wgpu::Buffer,
     resolve_layout: wgpu::BindGroupLayout,
     resolve: wgpu::RenderPipeline,
+    resolve_background: wgpu::RenderPipeline,
     resolve_params: wgpu::Buffer,
     targets: Option<Targets>,
     /// The background's parameters and texels (zeros until an environment is set).
@@ -278,6 +298,14 @@ impl Raster {
             ],
         );
         let resolve = render_pipeline(gpu, "resolve", &module, &resolve_layout, true, None);
+        let resolve_background = render_pipeline_fs(
+            gpu,
+            "resolve + background",
+            &module,
+            &resolve_layout,
+            Some("fs_background"),
+            None,
+        );
         let cam = [GpuCamera::zeroed_default()];
         Ok(Raster {
             camera: gpu.buffer("camera", bytemuck::cast_slice(&cam), UNIFORM, uploaded)?,
@@ -294,6 +322,7 @@ impl Raster {
             )?,
             resolve_layout,
             resolve,
+            resolve_background,
             targets: None,
             background: (
                 gpu.buffer("background", &[0; 64], UNIFORM, uploaded)?,
@@ -445,7 +474,11 @@ impl Raster {
                 label: Some("frame"),
             });
         let rl = self.resolve_layout.clone();
-        let rp = self.resolve.clone();
+        let rp = if opts.background {
+            self.resolve_background.clone()
+        } else {
+            self.resolve.clone()
+        };
         let params = self.resolve_params.clone();
         let camera_buffer = self.camera.clone();
         let (bg, texels) = self.background.clone();
