@@ -9,7 +9,7 @@
 //! |---|---|---|
 //! | `sh` | SH projection + rotation (CPU), per-vertex SH dot product (compute pass) | raster pass, resolve pass |
 //! | `hybrid` | decomposition, SH part (CPU), per-vertex dot product (compute pass), lights | one depth pass per light *when the lights changed* (cache key: light directions and map size), shading pass, resolve pass |
-//! | `sg` | prefiltered chain (CPU) uploaded as a 6-layer texture with one mip per level | per-vertex view blend (CPU), upload of the blended lobes, shading pass, resolve pass |
+//! | `sg` | prefiltered chain (CPU) uploaded as a 6-layer texture with one mip per level | per-vertex view blend (CPU), upload of the blended lobes, lobe matching per triangle (compute pass), shading pass, resolve pass |
 //!
 //! # Conventions
 //! * Rasterisation matches `relight_render::raster`: Mitsuba's perspective camera, samples
@@ -20,9 +20,9 @@
 //!   `(-e, e^2)` nudge), so silhouette samples may differ.
 //! * Data layouts the GPU reads are defined once in [`layout`] (`#[repr(C)]`, `Pod`, sizes
 //!   asserted at compile time), each naming its WGSL twin in `src/shaders/`.
-//! * One `.wgsl` file per method (`sh.wgsl`, `hybrid.wgsl` + `shadow.wgsl`, `sg.wgsl`), with
-//!   `common.wgsl` (camera, projection), `light.wgsl` and `sh_shade.wgsl` shared; a method
-//!   adds its shader and one arm of [`frame_of`].
+//! * One `.wgsl` file per method (`sh.wgsl`, `hybrid.wgsl` + `shadow.wgsl`, `sg.wgsl` +
+//!   `sg_match.wgsl`), with `common.wgsl` (camera, projection), `light.wgsl`, `sg_lobes.wgsl`
+//!   and `sh_shade.wgsl` shared; a method adds its shader and one arm of [`frame_of`].
 //! * The background ([`FrameOptions::background`]) is drawn in the resolve pass for latlong
 //!   and cube maps (the CPU's bilinear fetch); an angular probe's background is refused.
 //!
