@@ -264,3 +264,35 @@ fn wgpu_adapter_name_picks_the_adapter_or_lists_them() {
     let name = j["gpu"]["frame"]["adapter"].as_str().unwrap();
     assert!(name.to_lowercase().contains("llvmpipe"), "{name}");
 }
+
+#[test]
+fn a_method_without_a_gpu_renderer_is_refused_by_name() {
+    if !cfg!(feature = "gpu") {
+        return;
+    }
+    let dir = tmpdir("gpu", "cuts");
+    let b = bundle(&dir);
+    let scene = dir.join("scene.json");
+    let cuts = dir.join("cuts.relight");
+    let o = relight(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&cuts),
+        "--method",
+        "cuts",
+        "--cut-lights",
+        "256",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.join("x.png");
+    let o = relight(&["render", s(&cuts), "--gpu", "-o", s(&out)]);
+    if stderr(&o).contains("no Vulkan GPU adapter") {
+        relight_testdata::skip(&format!("no Vulkan adapter: {}", stderr(&o)));
+        return;
+    }
+    assert_clean_failure(&o, "--method cuts has no GPU renderer yet", &out);
+    // And a bundle of the wrong kind for the method, in the CPU frame's words.
+    let o = relight(&["render", s(&b), "--gpu", "--method", "sg", "-o", s(&out)]);
+    assert_clean_failure(&o, "holds a `sh` bake", &out);
+}
