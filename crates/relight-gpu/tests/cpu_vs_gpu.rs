@@ -53,13 +53,20 @@ const MAX_OUTLIERS: f32 = 0.005;
 /// 96 x 64 image of these scenes has a few hundred silhouette pixels, of which only samples
 /// within f32 rounding of an edge can differ (none did on lavapipe, 2026-12-02).
 const MAX_COVERAGE_DIFF: f32 = 0.005;
-/// Hybrid: pixels beyond `HYBRID_TOL` (shadow-map texel edges, penumbra widths): 1 %.
-const HYBRID_OUTLIERS: f32 = 0.01;
-/// Hybrid: the outliers' threshold, 1 % (lavapipe, 2026-12-02: largest difference 5.4e-3
-/// with area lights, 4.8e-6 with the thesis' point lights).
+/// Hybrid: the outliers' threshold, 1 %.
 const HYBRID_TOL: f32 = 0.01;
-/// Hybrid: mean relative error over fully covered pixels (measured: 1.6e-5).
-const HYBRID_MEAN: f32 = 1e-3;
+/// Hybrid with the thesis' point lights (PCF, no blocker search): pixels beyond `HYBRID_TOL`
+/// (shadow-map texels on triangle edges), at most 1 % (lavapipe, 2026-12-02: none; largest
+/// difference 4.8e-6 with the sun, 1.1e-3 with three discs).
+const HYBRID_POINT_OUTLIERS: f32 = 0.01;
+/// Hybrid with area lights (PCSS): the blocker search's squares differ from the CPU's (module
+/// docs), so penumbra widths differ where blockers vary in depth: at most 3 % of the pixels
+/// beyond `HYBRID_TOL` (measured: none with the sun, largest 5.4e-3; 0.96 % with three 2-3
+/// degree discs, largest 5.6e-2).
+const HYBRID_AREA_OUTLIERS: f32 = 0.03;
+/// Hybrid: mean relative error over fully covered pixels (measured: at most 4.7e-4, three
+/// area lights).
+const HYBRID_MEAN: f32 = 2e-3;
 
 /// The device, or `None` after a skip (a failure under `RELIGHT_REQUIRE_REFERENCE=1`).
 fn gpu() -> Option<Gpu> {
@@ -336,8 +343,70 @@ fn sh_frame_matches_without_supersampling_and_at_a_lower_order() {
 }
 
 fn hybrid_case(settings: HybridSettings) {
-    let Some(gpu) = gpu() else { return };
     let (b, scene) = sh_bake();
+    hybrid_case_in(settings, b, scene);
+}
+
+/// Three discs over a sky (a cube map): three lights, three shadow-map layers.
+fn three_suns(scene: &mut Scene) {
+    let discs = [
+        (
+            Vec3::new(0.3, 0.8, 0.2).normalize(),
+            2.0,
+            Vec3::splat(300.0),
+        ),
+        (
+            Vec3::new(-0.6, 0.5, -0.3).normalize(),
+            3.0,
+            Vec3::new(120.0, 90.0, 60.0),
+        ),
+        (
+            Vec3::new(0.1, 0.6, 0.9).normalize(),
+            2.5,
+            Vec3::splat(150.0),
+        ),
+    ];
+    scene.env = relight_scene::scene::Environment::new(relight_sphere::decompose::sky_with_discs(
+        64, &discs,
+    ));
+}
+
+#[test]
+fn hybrid_frame_with_three_point_lights_matches_the_cpu_frame() {
+    let (b, mut scene) = sh_bake();
+    three_suns(&mut scene);
+    hybrid_case_in(
+        HybridSettings {
+            shadow_map_size: 512,
+            thesis: true,
+            ..Default::default()
+        },
+        b,
+        scene,
+    );
+}
+
+#[test]
+fn hybrid_frame_with_three_area_lights_matches_the_cpu_frame() {
+    let (b, mut scene) = sh_bake();
+    three_suns(&mut scene);
+    hybrid_case_in(
+        HybridSettings {
+            shadow_map_size: 512,
+            ..Default::default()
+        },
+        b,
+        scene,
+    );
+}
+
+fn hybrid_case_in(settings: HybridSettings, b: Baked, scene: Scene) {
+    let Some(gpu) = gpu() else { return };
+    let outliers = if settings.thesis {
+        HYBRID_POINT_OUTLIERS
+    } else {
+        HYBRID_AREA_OUTLIERS
+    };
     let fs = FrameSettings::Hybrid(settings);
     // The sky's sun must give at least one light, or shadows are not tested.
     let d = settings.resolve(4).unwrap().0;
@@ -346,6 +415,7 @@ fn hybrid_case(settings: HybridSettings) {
         .lights
         .len();
     assert!(lights >= 1, "no light extracted");
+    eprintln!("{lights} lights");
     let c = cpu(&b, &fs, &scene, &opts());
     let mut f = frame_of(&gpu, &b, &fs).unwrap();
     f.set_environment(&scene.env).unwrap();
@@ -353,7 +423,7 @@ fn hybrid_case(settings: HybridSettings) {
     assert_eq!(g.stats.shadow_maps_rendered as usize, lights);
     assert_eq!(g.stats.passes as usize, lights + 2);
     Diff::of(&c, &g)
-        .check(HYBRID_TOL, HYBRID_OUTLIERS, HYBRID_MEAN)
+        .check(HYBRID_TOL, outliers, HYBRID_MEAN)
         .unwrap();
     // The shadow maps are cached: the next frame renders none, and the same image.
     let g2 = f.render(&scene.camera, &opts()).unwrap();
@@ -380,7 +450,7 @@ fn hybrid_case(settings: HybridSettings) {
     let z = zero_transfer(&b);
     let g = gpu_render(&gpu, &z, &fs, &scene, &opts());
     assert!(Diff::of(&c, &g)
-        .check(HYBRID_TOL, HYBRID_OUTLIERS, HYBRID_MEAN)
+        .check(HYBRID_TOL, outliers, HYBRID_MEAN)
         .is_err());
 }
 
