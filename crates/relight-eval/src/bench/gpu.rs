@@ -222,7 +222,11 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
     );
     row(
         "environment decomposition (hybrid; 6 x 64 x 64 cube map, sky + 3 discs)",
-        median((0..runs).map(|_| super::hybrid::bench_decompose()).collect()),
+        median(
+            (0..runs)
+                .map(|_| super::hybrid::bench_decompose())
+                .collect(),
+        ),
     );
     if let Baked::Sg(b) = &sg {
         let r = relight_render::shade_sg::SgRenderer::new(&b.scene.mesh, &b.bake);
