@@ -296,3 +296,32 @@ fn a_method_without_a_gpu_renderer_is_refused_by_name() {
     let o = relight(&["render", s(&b), "--gpu", "--method", "sg", "-o", s(&out)]);
     assert_clean_failure(&o, "holds a `sh` bake", &out);
 }
+
+#[test]
+fn an_environment_with_nan_texels_is_refused_before_the_gpu_starts() {
+    let dir = tmpdir("gpu", "nan");
+    let b = bundle(&dir);
+    // A latlong with a NaN texel, written with the exr crate (relight's writer refuses NaN).
+    let env = dir.join("nan.exr");
+    exr::prelude::write_rgb_file(&env, 8, 4, |x, y| {
+        if (x, y) == (3, 1) {
+            (1.0, f32::NAN, 0.0)
+        } else {
+            (1.0, 1.0, 1.0)
+        }
+    })
+    .unwrap();
+    let out = dir.join("x.png");
+    // The same refusal with or without the feature, and without any Vulkan driver: the
+    // environment is read and checked before the GPU is opened.
+    let o = relight_env(
+        &["render", s(&b), "--gpu", "--env", s(&env), "-o", s(&out)],
+        &[("VK_DRIVER_FILES", "/nonexistent/icd.json")],
+    );
+    let expect = if cfg!(feature = "gpu") {
+        "nan.exr"
+    } else {
+        "--features gpu"
+    };
+    assert_clean_failure(&o, expect, &out);
+}
