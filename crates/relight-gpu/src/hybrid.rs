@@ -1,11 +1,13 @@
 //! The `hybrid` frame on the GPU (thesis 4.3-4.4; `relight_method::hybrid::HybridFrame`):
 //! per environment, the decomposition and the SH part on the CPU (as the CPU frame) and the
 //! per-vertex dot product in a compute pass; per frame, one depth pass per light into a
-//! layer of a depth texture array **only when the lights changed** (cache key: each light's
-//! direction bits and the map size; [`FrameStats::shadow_maps_rendered`] counts the passes),
-//! then the shading pass (`hybrid.wgsl`) and the resolve pass.
+//! layer of a depth texture array and the maps' min pyramids (a compute pass,
+//! `shadow_pyramid.wgsl`, for the PCSS blocker search) **only when the lights changed**
+//! (cache key: each light's direction bits and the map size;
+//! [`FrameStats::shadow_maps_rendered`] counts the maps), then the shading pass
+//! (`hybrid.wgsl`) and the resolve pass.
 
-use crate::layout::{GpuHybridParams, GpuLight};
+use crate::layout::{GpuHybridParams, GpuLight, GpuPyramidLevel, MAX_PYRAMID_LEVELS};
 use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, DEPTH, STORAGE, UNIFORM};
 use crate::sh::ShShade;
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
@@ -41,17 +43,12 @@ pub(crate) fn gpu_lights(
         .filter(|l| l.power.max_element() > 0.0)
         .map(|l| {
             let (u, v) = l.dir.any_orthonormal_pair();
-            // Nearest depth of the mesh along the light: the PCSS search's starting reach.
-            let min_depth = mesh
-                .positions
-                .iter()
-                .fold(f32::INFINITY, |m, &p| m.min(-(p - center).dot(l.dir)));
             GpuLight {
                 dir: v4(l.dir, l.cap_radius),
                 u: v4(u, 2.0 * half / s.map_size as f32),
                 v: v4(v, half),
                 center: v4(center, s.depth_bias),
-                power: v4(l.power, min_depth),
+                power: v4(l.power, 0.0),
                 kernel: s.pcf_taps.max(1) as f32,
                 taps: s.area_taps.max(2),
                 size: s.map_size,
@@ -61,12 +58,29 @@ pub(crate) fn gpu_lights(
         .collect()
 }
 
+/// The min pyramid of an `n`-texel map (`ShadowMap`'s levels: level 1 of `ceil(n / 2)`
+/// entries per side, each the next halved, down to 1): `(size, offset)` per level and the
+/// floats of one layer.
+fn pyramid_levels(n: u32) -> (Vec<(u32, u32)>, u32) {
+    let (mut levels, mut m, mut offset) = (vec![], n, 0);
+    while m > 1 {
+        m = m.div_ceil(2);
+        levels.push((m, offset));
+        offset += m * m;
+    }
+    (levels, offset)
+}
+
 /// What the prepared environment gives the GPU.
 struct Prepared {
     lights: Vec<GpuLight>,
     shadow: wgpu::Texture,
+    /// The maps' min pyramids (kept with the maps).
+    pyramid: wgpu::Buffer,
     group: wgpu::BindGroup,
     shadow_group: wgpu::BindGroup,
+    /// One bind group per pyramid level, with the level's size (dispatch).
+    pyramid_groups: Vec<(wgpu::BindGroup, u32)>,
     /// The key of the lights the maps were rendered for (`None`: not rendered yet).
     rendered: Option<ShadowKey>,
     key: ShadowKey,
@@ -86,6 +100,8 @@ pub(crate) struct HybridGpuFrame<'a> {
     pipeline: wgpu::RenderPipeline,
     shadow_layout: wgpu::BindGroupLayout,
     shadow_pipeline: wgpu::RenderPipeline,
+    pyramid_layout: wgpu::BindGroupLayout,
+    pyramid_pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
     prepared: Option<Prepared>,
 }
@@ -119,6 +135,7 @@ impl<'a> HybridGpuFrame<'a> {
                 B::Storage,
                 B::DepthArray,
                 B::Uniform,
+                B::Storage,
             ],
         );
         let light_wgsl = include_str!("shaders/light.wgsl");
@@ -153,15 +170,31 @@ impl<'a> HybridGpuFrame<'a> {
             false,
             Some(wgpu::CompareFunction::Less),
         );
+        let (levels, _) = pyramid_levels(shadows.map_size);
+        if levels.len() > MAX_PYRAMID_LEVELS {
+            return Err(GpuError::Unsupported(format!(
+                "shadow map size {} has more than {MAX_PYRAMID_LEVELS} pyramid levels",
+                shadows.map_size
+            )));
+        }
         let params = gpu.buffer(
             "hybrid params",
-            bytemuck::bytes_of(&GpuHybridParams {
-                light_count: 0,
-                pad: [0; 3],
-            }),
+            bytemuck::bytes_of(&<GpuHybridParams as bytemuck::Zeroable>::zeroed()),
             UNIFORM,
             &mut up,
         )?;
+        let pyramid_layout = pipeline::layout(
+            gpu,
+            "shadow pyramid",
+            wgpu::ShaderStages::COMPUTE,
+            &[B::Uniform, B::Storage, B::DepthArray, B::StorageRw],
+        );
+        let pmod = gpu.shader(
+            "shadow pyramid",
+            &[light_wgsl, include_str!("shaders/shadow_pyramid.wgsl")],
+        );
+        let pyramid_pipeline =
+            pipeline::compute_pipeline(gpu, "shadow pyramid", &pmod, "build", &pyramid_layout);
         gpu.check()?;
         Ok(HybridGpuFrame {
             gpu,
@@ -176,6 +209,8 @@ impl<'a> HybridGpuFrame<'a> {
             pipeline,
             shadow_layout,
             shadow_pipeline,
+            pyramid_layout,
+            pyramid_pipeline,
             params,
             prepared: None,
         })
@@ -218,6 +253,17 @@ impl<'a> HybridGpuFrame<'a> {
             stats.draw_calls += 1;
             stats.shadow_maps_rendered += 1;
         }
+        // The maps' min pyramids, level by level (each dispatch sees the previous one's
+        // writes).
+        if !p.lights.is_empty() {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pyramid_pipeline);
+            for (g, size) in &p.pyramid_groups {
+                pass.set_bind_group(0, g, &[]);
+                pass.dispatch_workgroups(size.div_ceil(8), size.div_ceil(8), p.lights.len() as u32);
+            }
+            stats.passes += 1;
+        }
         p.rendered = Some(p.key.clone());
     }
 }
@@ -254,21 +300,34 @@ impl GpuFrame for HybridGpuFrame<'_> {
         );
         let gpu = self.gpu;
         let up = &mut stats.bytes_uploaded;
-        gpu.write(
-            &self.params,
-            bytemuck::bytes_of(&GpuHybridParams {
-                light_count: lights.len() as u32,
-                pad: [0; 3],
-            }),
-            up,
-        );
+        let (levels, layer_stride) = pyramid_levels(self.shadows.map_size);
+        let mut hp = GpuHybridParams {
+            light_count: lights.len() as u32,
+            level_count: levels.len() as u32,
+            layer_stride,
+            pad: 0,
+            levels: [[0; 4]; MAX_PYRAMID_LEVELS],
+        };
+        for (k, &(size, offset)) in levels.iter().enumerate() {
+            hp.levels[k] = [size, offset, 0, 0];
+        }
+        gpu.write(&self.params, bytemuck::bytes_of(&hp), up);
         // Keep the maps (and their texture) when the lights did not move.
         let keep = self
             .prepared
             .take()
             .filter(|p| p.key == key && p.lights.len() == lights.len());
-        let (shadow, rendered) = match keep {
-            Some(p) => (p.shadow, p.rendered),
+        let layers = (lights.len() as u64).max(1);
+        let pyramid_bytes = layer_stride as u64 * 4 * layers;
+        if pyramid_bytes > gpu.limits().max_storage_buffer_binding_size {
+            return Err(GpuError::Unsupported(format!(
+                "{} shadow maps of {} texels need a {pyramid_bytes}-byte depth pyramid, beyond the device's storage buffer limit",
+                lights.len(),
+                self.shadows.map_size
+            )));
+        }
+        let (shadow, pyramid, rendered) = match keep {
+            Some(p) => (p.shadow, p.pyramid, p.rendered),
             None => {
                 let n = self.shadows.map_size;
                 let layers = (lights.len() as u32).max(1);
@@ -287,7 +346,13 @@ impl GpuFrame for HybridGpuFrame<'_> {
                         | wgpu::TextureUsages::TEXTURE_BINDING,
                     view_formats: &[],
                 });
-                (t, None)
+                let pyramid = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("shadow pyramids"),
+                    size: pyramid_bytes.max(16),
+                    usage: STORAGE,
+                    mapped_at_creation: false,
+                });
+                (t, pyramid, None)
             }
         };
         // A binding holds at least one light (unused when there are none).
@@ -301,6 +366,37 @@ impl GpuFrame for HybridGpuFrame<'_> {
             dimension: Some(wgpu::TextureViewDimension::D2Array),
             ..Default::default()
         });
+        let mut pyramid_groups = vec![];
+        let mut src = (self.shadows.map_size, 0u32, 1u32);
+        for &(size, offset) in &levels {
+            let lv = GpuPyramidLevel {
+                src_size: src.0,
+                dst_size: size,
+                src_offset: src.1,
+                dst_offset: offset,
+                layer_stride,
+                from_texture: src.2,
+                pad: [0; 2],
+            };
+            let b = gpu.buffer("pyramid level", bytemuck::bytes_of(&lv), UNIFORM, up)?;
+            let sv = shadow.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            });
+            let g = bind(
+                gpu,
+                "pyramid level",
+                &self.pyramid_layout,
+                &[
+                    b.as_entire_binding(),
+                    light_buffer.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&sv),
+                    pyramid.as_entire_binding(),
+                ],
+            );
+            pyramid_groups.push((g, size));
+            src = (size, offset, 0);
+        }
         let m = &self.mesh;
         let group = bind(
             gpu,
@@ -316,6 +412,7 @@ impl GpuFrame for HybridGpuFrame<'_> {
                 light_buffer.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&sview),
                 self.params.as_entire_binding(),
+                pyramid.as_entire_binding(),
             ],
         );
         let shadow_group = bind(
@@ -331,8 +428,10 @@ impl GpuFrame for HybridGpuFrame<'_> {
         self.prepared = Some(Prepared {
             lights,
             shadow,
+            pyramid,
             group,
             shadow_group,
+            pyramid_groups,
             rendered,
             key,
         });

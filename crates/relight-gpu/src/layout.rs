@@ -97,7 +97,8 @@ pub struct GpuLight {
     pub v: [f32; 4],
     /// Centre of the map; w: depth bias in texels.
     pub center: [f32; 4],
-    /// Irradiance at normal incidence (RGB); w: least depth of the mesh along the light.
+    /// Irradiance at normal incidence (RGB); w unused (the least depth comes from the map's
+    /// pyramid).
     pub power: [f32; 4],
     /// PCF kernel width (texels): the filter's minimum width.
     pub kernel: f32,
@@ -110,16 +111,47 @@ pub struct GpuLight {
 }
 const _: () = assert!(size_of::<GpuLight>() == 96);
 
+/// Most levels of a shadow map's min pyramid (a 16384-texel map has 14).
+pub const MAX_PYRAMID_LEVELS: usize = 16;
+
 /// The hybrid shading pass's parameters. WGSL twin: `HybridParams` in `shaders/hybrid.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuHybridParams {
     /// Lights (and shadow-map layers).
     pub light_count: u32,
+    /// Levels of each map's min pyramid (level 1 first).
+    pub level_count: u32,
+    /// Floats of one layer's pyramid.
+    pub layer_stride: u32,
     /// Padding.
-    pub pad: [u32; 3],
+    pub pad: u32,
+    /// Per level: entries per side, offset in the layer's pyramid (then two unused).
+    pub levels: [[u32; 4]; MAX_PYRAMID_LEVELS],
 }
-const _: () = assert!(size_of::<GpuHybridParams>() == 16);
+const _: () = assert!(size_of::<GpuHybridParams>() == 16 + 16 * MAX_PYRAMID_LEVELS);
+
+/// One level of the shadow maps' min pyramid to build.
+/// WGSL twin: `PyramidLevel` in `shaders/shadow_pyramid.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuPyramidLevel {
+    /// Entries per side of the level read.
+    pub src_size: u32,
+    /// Entries per side of the level written.
+    pub dst_size: u32,
+    /// Offset of the level read in a layer's pyramid.
+    pub src_offset: u32,
+    /// Offset of the level written.
+    pub dst_offset: u32,
+    /// Floats of one layer's pyramid.
+    pub layer_stride: u32,
+    /// 1: read the depth texture (level 1), 0: the pyramid.
+    pub from_texture: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+const _: () = assert!(size_of::<GpuPyramidLevel>() == 32);
 
 /// One spherical Gaussian lobe, axis in the environment map's frame
 /// (`relight_sphere::sg::SgLobe`). WGSL twin: `Lobe` in `shaders/sg.wgsl`.
@@ -219,7 +251,8 @@ mod tests {
         type C = GpuCamera;
         type L = GpuLight;
         type S = GpuSgParams;
-        let cases: [(&str, &str, usize, Vec<u32>); 9] = [
+        let pyramid = [LIGHT, include_str!("shaders/shadow_pyramid.wgsl")].concat();
+        let cases: [(&str, &str, usize, Vec<u32>); 10] = [
             (
                 &sg_match,
                 "MatchParams",
@@ -284,7 +317,13 @@ mod tests {
                 &hybrid,
                 "HybridParams",
                 size_of::<GpuHybridParams>(),
-                o(&[0, 4, 8, 12]),
+                o(&[0, 4, 8, 12, 16]),
+            ),
+            (
+                &pyramid,
+                "PyramidLevel",
+                size_of::<GpuPyramidLevel>(),
+                o(&[0, 4, 8, 12, 16, 20, 24, 28]),
             ),
             (
                 &sg,

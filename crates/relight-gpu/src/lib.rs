@@ -8,7 +8,7 @@
 //! | method | once per environment | per frame |
 //! |---|---|---|
 //! | `sh` | SH projection + rotation (CPU), per-vertex SH dot product (compute pass) | raster pass, resolve pass |
-//! | `hybrid` | decomposition, SH part (CPU), per-vertex dot product (compute pass), lights | one depth pass per light *when the lights changed* (cache key: light directions and map size), shading pass, resolve pass |
+//! | `hybrid` | decomposition, SH part (CPU), per-vertex dot product (compute pass), lights | one depth pass per light and the maps' min pyramids (compute pass) *when the lights changed* (cache key: light directions and map size), shading pass, resolve pass |
 //! | `sg` | prefiltered chain (CPU) uploaded as a 6-layer texture with one mip per level | per-vertex view blend (CPU), upload of the blended lobes, lobe matching per triangle (compute pass), shading pass, resolve pass |
 //!
 //! # Conventions

@@ -9,12 +9,9 @@
 // Shading normal: interpolated vertex normal (the geometric one where it vanishes); the bias
 // uses the geometric normal; one-sided surfaces, as relight_render::hybrid.
 //
-// One difference from the CPU (relight_render::shadowmap): its PCSS blocker search first
-// shrinks its square with a min-max depth pyramid; here the square is the one the mesh's
-// nearest depth allows (the CPU's starting square). Both search squares are sound (no
-// relevant blocker lies outside), but the 5 x 5 search taps fall elsewhere, so penumbra
-// widths can differ where blockers vary in depth. The pyramid's early outs of the CPU return
-// the same values as the full filters and are not needed here.
+// The PCSS blocker search shrinks its square with each map's min pyramid
+// (shadow_pyramid.wgsl), as the CPU does with the min half of its min-max pyramid. The CPU's
+// early outs on that pyramid return the same values as the full filters and are not needed.
 
 const PI: f32 = 3.14159265358979;
 const INF: f32 = 3.0e38;
@@ -25,9 +22,10 @@ const SEARCH_TAPS: u32 = 5u;
 // Twin of relight_gpu::layout::GpuHybridParams.
 struct HybridParams {
     light_count: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    level_count: u32,
+    layer_stride: u32,
+    pad: u32,
+    levels: array<vec4<u32>, 16>,
 }
 
 @group(0) @binding(0) var<uniform> cam: Camera;
@@ -39,6 +37,7 @@ struct HybridParams {
 @group(0) @binding(6) var<storage, read> lights: array<Light>;
 @group(0) @binding(7) var shadow: texture_depth_2d_array;
 @group(0) @binding(8) var<uniform> params: HybridParams;
+@group(0) @binding(9) var<storage, read> pyramid: array<f32>;
 
 struct VOut {
     @builtin(position) pos: vec4<f32>,
@@ -121,6 +120,39 @@ fn ifloor(x: f32) -> i32 {
     return i32(floor(x));
 }
 
+// Least depth stored in layer `layer`'s map (the top of its pyramid).
+fn min_depth(layer: u32) -> f32 {
+    let top = params.levels[params.level_count - 1u];
+    return pyramid[layer * params.layer_stride + top.y];
+}
+
+// Least stored depth over a superset of the texels floor(s - half) ..= floor(s + half) (same
+// in t): at most 4 entries of the pyramid level whose blocks are at least as wide as the span
+// (ShadowMap::block_bounds, its `lo`).
+fn block_lo(layer: u32, r: Receiver, half: f32) -> f32 {
+    let s0 = ifloor(r.s - half);
+    let s1 = ifloor(r.s + half);
+    let t0 = ifloor(r.t - half);
+    let t1 = ifloor(r.t + half);
+    let span = max(max(s1 - s0 + 1, t1 - t0 + 1), 1);
+    let l = max(32u - countLeadingZeros(u32(span - 1)), 1u);
+    if (l - 1u >= params.level_count) {
+        return min_depth(layer);
+    }
+    let level = params.levels[l - 1u];
+    let m = i32(level.x);
+    let base = layer * params.layer_stride + level.y;
+    var lo = INF;
+    for (var i = t0 >> l; i <= (t1 >> l); i++) {
+        for (var j = s0 >> l; j <= (s1 >> l); j++) {
+            if (j >= 0 && i >= 0 && j < m && i < m) {
+                lo = min(lo, pyramid[base + u32(i * m + j)]);
+            }
+        }
+    }
+    return lo;
+}
+
 // Exact box filter of `width` texels: each texel's test weighted by its overlap.
 fn box_exact(l: Light, layer: u32, r: Receiver, width: f32) -> f32 {
     let s0 = r.s - 0.5 * width;
@@ -184,8 +216,18 @@ fn visibility(l: Light, layer: u32, p: vec3<f32>, ng: vec3<f32>) -> f32 {
     }
     let texel = l.u.w;
     let tan_a = tan(min(l.dir.w, 1.5));
-    // Blocker search over the widest penumbra the nearest geometry allows (Fernando 2005).
-    let reach = min(max(r.z - l.power.w, 0.0) * tan_a / texel, 64.0);
+    // Blocker search over the widest possible penumbra (Fernando 2005): start with the
+    // nearest geometry of the whole map, then shrink with the nearest geometry inside the
+    // current square (sound: any relevant blocker lies inside every square).
+    var reach = min(max(r.z - min_depth(layer), 0.0) * tan_a / texel, 64.0);
+    for (var it = 0; it < 4; it++) {
+        let lo = block_lo(layer, r, max(reach, 0.5 * l.kernel));
+        let next = min(max(r.z - lo, 0.0) * tan_a / texel, reach);
+        if (next > 0.9 * reach) {
+            break;
+        }
+        reach = next;
+    }
     let search = max(reach, 0.5 * l.kernel);
     let n = min(SEARCH_TAPS, u32(ceil(2.0 * search)) + 1u);
     var sum = 0.0;
