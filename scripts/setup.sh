@@ -5,12 +5,16 @@
 #   - slurm-wlm, munge : the one-node Slurm cluster of the sharded-bake test (the test starts
 #                     and stops it itself with deploy/slurm/local-cluster.sh; no service is
 #                     enabled)
+#   - mesa-vulkan-drivers, libvulkan1 : the Vulkan loader and Mesa's drivers, among them
+#                     lavapipe (a CPU Vulkan driver), for relight-gpu's tests and
+#                     `relight render --gpu` (feature `gpu`) on machines without a GPU
+#   - xvfb          : a virtual X display for the interactive viewer's tests (to come)
 #   - a Python venv with Mitsuba 3 + numpy at ${RELIGHT_VENV:-$HOME/.cache/relight/venv},
 #     used only for ground truth (tools/mitsuba_reference.py and the tests that compare with it)
 # Each step is skipped when already done. Set RELIGHT_SKIP_MITSUBA=1 to skip the venv.
 set -euo pipefail
 
-pkgs=(libembree-dev libllvm19 slurm-wlm munge)
+pkgs=(libembree-dev libllvm19 slurm-wlm munge mesa-vulkan-drivers libvulkan1 xvfb)
 missing=()
 for p in "${pkgs[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -13,5 +13,10 @@ else
 fi
 echo "== python: tools/test_mitsuba_reference.py"
 "$py" tools/test_mitsuba_reference.py
-echo "== cargo test --release --workspace"
-cargo test --release --workspace
+# The binary's optional GPU renderer is on (`relight-cli/gpu`: relight-gpu on Vulkan, lavapipe
+# from scripts/setup.sh where there is no GPU) so that its CLI tests (tests/gpu.rs) and the
+# bench section compile and run in the same build: wgpu compiles once. relight-gpu's own
+# tests run here too. (`cargo test --release -p relight-cli --test gpu` without the feature
+# checks that a default build refuses --gpu by name.)
+echo "== cargo test --release --workspace --features relight-cli/gpu"
+cargo test --release --workspace --features relight-cli/gpu

@@ -65,6 +65,10 @@ pub struct Args {
     /// vMF options.
     #[command(flatten)]
     pub vmf: VmfFrameSettings,
+    /// Render the frame on the GPU (wgpu, Vulkan; sh, hybrid and sg).
+    /// Needs a build with `--features gpu` and a Vulkan driver (Debian: mesa-vulkan-drivers).
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// The frame settings of `method` from the options.
@@ -86,6 +90,13 @@ fn frame_settings(a: &Args, method: MethodKind) -> Result<FrameSettings> {
 
 /// Run `relight render`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
+    if a.gpu && !cfg!(feature = "gpu") {
+        anyhow::bail!(
+            "--gpu: this relight was built without the GPU renderer; rebuild it with \
+             `cargo build --release --features gpu` (it then needs a Vulkan driver at run \
+             time: on Debian `apt-get install mesa-vulkan-drivers libvulkan1`)"
+        );
+    }
     let tm = args::tonemap(&a.tonemap)?;
     let mut inputs = vec![a.bundle.as_path()];
     inputs.extend(a.env.env.as_deref());
@@ -124,6 +135,27 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         background: a.background,
     };
     relight_method::check_frame_options(&opts, &camera)?;
+    #[cfg(feature = "gpu")]
+    if a.gpu {
+        let (image, summary, stats) =
+            gpu::render(&baked, &settings, &a.bundle, &env, &camera, &opts)?;
+        out.line(summary.clone());
+        write_all(&a.out, &image, &tm)?;
+        for o in &a.out {
+            out.line(format!("wrote {}", o.display()));
+        }
+        out.summary(json!({
+            "command": "render",
+            "method": method.name(),
+            "bundle": a.bundle,
+            "outputs": a.out,
+            "width": image.width,
+            "height": image.height,
+            "summary": summary,
+            "gpu": stats,
+        }));
+        return Ok(());
+    }
     let mut frame = baked
         .frame_of(&settings, &a.bundle)
         .with_context(|| format!("--method {}", method.name()))?;
@@ -137,15 +169,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         f.times.vertex_ms,
         f.times.pixel_ms
     ));
-    // All outputs or none: on a failure, the ones already written are removed.
-    for (i, o) in a.out.iter().enumerate() {
-        if let Err(e) = write_image(o, &f.image, &tm) {
-            a.out[..i]
-                .iter()
-                .for_each(|w| drop(std::fs::remove_file(w)));
-            return Err(e.into());
-        }
-    }
+    write_all(&a.out, &f.image, &tm)?;
     for o in &a.out {
         out.line(format!("wrote {}", o.display()));
     }
@@ -161,4 +185,62 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         "frame_ms": f.times,
     }));
     Ok(())
+}
+
+/// Write `image` to every output, all or none: on a failure, the ones already written are
+/// removed.
+fn write_all(
+    outs: &[PathBuf],
+    image: &relight_render::Image,
+    tm: &relight_render::tonemap::ToneMap,
+) -> Result<()> {
+    for (i, o) in outs.iter().enumerate() {
+        if let Err(e) = write_image(o, image, tm) {
+            outs[..i].iter().for_each(|w| drop(std::fs::remove_file(w)));
+            return Err(e.into());
+        }
+    }
+    Ok(())
+}
+
+/// `render --gpu` (feature `gpu`): the frame of relight-gpu.
+#[cfg(feature = "gpu")]
+mod gpu {
+    use anyhow::{Context, Result};
+    use relight_method::{Baked, FrameOptions, FrameSettings};
+    use relight_render::Image;
+    use relight_scene::camera::Camera;
+    use relight_scene::scene::Environment;
+    use std::path::Path;
+
+    /// The image, the summary line and the stats (JSON) of one GPU frame.
+    pub fn render(
+        baked: &Baked,
+        settings: &FrameSettings,
+        path: &Path,
+        env: &Environment,
+        camera: &Camera,
+        opts: &FrameOptions,
+    ) -> Result<(Image, String, serde_json::Value)> {
+        let gpu = relight_gpu::Gpu::new()?;
+        let mut frame = relight_gpu::frame_of_path(&gpu, baked, settings, path)
+            .with_context(|| format!("--gpu --method {}", settings.method().name()))?;
+        let prep = frame.set_environment(env)?;
+        let f = frame.render(camera, opts)?;
+        let s = &f.stats;
+        let line = format!(
+            "{} on {}: environment {:.1} ms and uploads + GPU per-vertex work {:.1} ms (once per environment); frame {:.1} ms ({} passes, {} draw calls, {} bytes uploaded, CPU {:.2} ms)",
+            frame.summary(),
+            s.adapter,
+            prep.environment_ms,
+            prep.gpu_ms,
+            s.total_ms,
+            s.passes,
+            s.draw_calls,
+            s.bytes_uploaded,
+            s.cpu_ms
+        );
+        let stats = serde_json::json!({ "prepare": prep, "frame": s });
+        Ok((f.image, line, stats))
+    }
 }

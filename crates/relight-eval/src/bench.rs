@@ -29,6 +29,8 @@
 //!     variants.
 //! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512) split into G-buffer,
 //!     per-triangle merge and shading, against the per-fragment merge in the same run.
+//! 12. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
+//!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
 //! repeated calls after a warm-up) and [`process_cpu_ms`] (CPU time of all threads, which a
@@ -36,6 +38,8 @@
 
 pub mod cuts_bake;
 pub mod cuts_frame;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod hybrid;
 pub mod prefilter;
 pub mod projection;
@@ -214,7 +218,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 12] = [
+pub const SECTIONS: [&str; 13] = [
     "rays",
     "sh-bake",
     "shard",
@@ -227,6 +231,7 @@ pub const SECTIONS: [&str; 12] = [
     "sg-frame",
     "cuts-bake",
     "cuts-frame",
+    "gpu",
 ];
 
 /// Run the benchmarks; each section is also printed as markdown on stderr as it completes.
@@ -310,6 +315,16 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     }
     if on("cuts-frame") {
         push(cuts_frame::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
+    if on("gpu") {
+        #[cfg(feature = "gpu")]
+        gpu::sections(a.quick)?.into_iter().for_each(&mut push);
+        #[cfg(not(feature = "gpu"))]
+        if !a.only.is_empty() {
+            return Err(EvalError::Options(
+                "bench: section 'gpu' needs a relight built with `--features gpu`".into(),
+            ));
+        }
     }
     Ok(report)
 }
