@@ -412,6 +412,8 @@ fn bench_json_lists_every_section_with_numbers() {
         "SG fitter",
         "SG bake",
         "SG frame",
+        "Cuts bake",
+        "Cuts frame",
     ] {
         assert!(
             titles.iter().any(|t| t.starts_with(want)),

@@ -5,7 +5,7 @@
 //! default settings (binary visibility) (32,768 lights; 4,096 with `quick`), then rendered at
 //! 512 x 512, one sample per pixel, under a sky with a sun
 //! ([`super::cuts_bake::sky_with_sun`]), for a Lambert and a GGX material at the light cuts
-//! 128, 256 and 512. Each frame is split into its stages
+//! 128, 256 and 512 (256 only with `quick`). Each frame is split into its stages
 //! ([`relight_render::shade_cuts::CutsStage`]): the G-buffer (rasterise and group fragments
 //! by triangle), the merge of every visible triangle's three vertex cuts with the light cut
 //! (once per triangle and band of rows), and the shading of every fragment. The **baseline**,
@@ -114,7 +114,8 @@ pub(super) fn section(
                 &bake,
                 function,
             );
-            for budget in LIGHT_CUT_BUDGETS {
+            let budgets: &[usize] = if quick { &[256] } else { &LIGHT_CUT_BUDGETS };
+            for &budget in budgets {
                 let light = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
                     .map_err(bad)?;
                 let opts = RasterOptions { supersample: 1 };
