@@ -25,7 +25,7 @@ use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
 use relight_scene::material::microfacet;
-use relight_scene::material::Material;
+use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
 use relight_sphere::warp::Frame;
@@ -38,7 +38,7 @@ const HORIZON: f32 = 1e-3;
 /// The cuts renderer over one whole-mesh bake.
 pub struct CutsShader<'a> {
     mesh: &'a TriMesh,
-    materials: Vec<Material>,
+    materials: Vec<MaterialEval>,
     bake: &'a CutsBake,
     function: CutFunction,
 }
@@ -63,7 +63,7 @@ impl<'a> CutsShader<'a> {
         );
         CutsShader {
             mesh,
-            materials,
+            materials: materials.into_iter().map(MaterialEval::new).collect(),
             bake,
             function,
         }
@@ -79,11 +79,11 @@ impl<'a> CutsShader<'a> {
         if wi.z <= 0.0 {
             return Vec3::ZERO; // one-sided materials, as the path tracer's
         }
-        let material = self.materials[self.mesh.material_ids[f.tri as usize] as usize];
+        let material = &self.materials[self.mesh.material_ids[f.tri as usize] as usize];
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
         shade(light, cuts, f.bary, |w| {
-            self.brdf(&material, wi, frame.to_local(w))
+            self.brdf(material, wi, frame.to_local(w))
         })
     }
 
@@ -160,7 +160,7 @@ impl<'a> CutsShader<'a> {
         eye: Vec3,
         out: &mut [Vec3],
     ) {
-        let material = self.materials[self.mesh.material_ids[tri as usize] as usize];
+        let material = &self.materials[self.mesh.material_ids[tri as usize] as usize];
         for (f, o) in fs.iter().zip(out.iter_mut()) {
             let n = f.shading_normal;
             let view = (eye - f.position).normalize_or_zero();
@@ -169,7 +169,7 @@ impl<'a> CutsShader<'a> {
                 continue;
             }
             let b = f.bary;
-            *o = match (material, self.function) {
+            *o = match (*material.material(), self.function) {
                 // eval / cos = albedo / pi for every cluster: the sum factors per corner.
                 (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
                     albedo * FRAC_1_PI * (t.sums[0] * b[0] + t.sums[1] * b[1] + t.sums[2] * b[2])
@@ -189,7 +189,7 @@ impl<'a> CutsShader<'a> {
                     for k in 0..t.len() {
                         let (power, v, dir) = t.cluster(k, b);
                         if v > 0.0 {
-                            sum += power * v * self.brdf(&material, wi, frame.to_local(dir));
+                            sum += power * v * self.brdf(material, wi, frame.to_local(dir));
                         }
                     }
                     sum
@@ -201,7 +201,7 @@ impl<'a> CutsShader<'a> {
     /// The BRDF factor of one merged cluster in the shading frame (see
     /// [`CutsShader::shade_fragment`]).
     #[inline]
-    fn brdf(&self, material: &Material, wi: Vec3, wo: Vec3) -> Vec3 {
+    fn brdf(&self, material: &MaterialEval, wi: Vec3, wo: Vec3) -> Vec3 {
         match self.function {
             CutFunction::VisibilityCosine => {
                 let wo = if wo.z >= HORIZON {

@@ -143,9 +143,50 @@ pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     }
 }
 
+/// A material ready to be evaluated in many directions: [`Material::eval`] with what it
+/// looks up per call (the GGX plastic's tables) fetched once.
+#[derive(Clone, Debug)]
+pub struct MaterialEval {
+    material: Material,
+    tables: Option<std::sync::Arc<PlasticTables>>,
+}
+
+impl MaterialEval {
+    /// `material`, prepared.
+    pub fn new(material: Material) -> Self {
+        let tables = match material {
+            Material::GgxPlastic { alpha, ior, .. } => Some(PlasticTables::get(alpha, ior)),
+            _ => None,
+        };
+        MaterialEval { material, tables }
+    }
+
+    /// The prepared material.
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// Exactly [`Material::eval`].
+    #[inline]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+        self.material.eval_with(self.tables.as_deref(), wi, wo)
+    }
+}
+
 impl Material {
     /// The BSDF times `max(0, cos theta_o)`: `f(wi, wo) cos theta_o` (see the module docs).
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
+        match *self {
+            Material::GgxPlastic { alpha, ior, .. } => {
+                self.eval_with(Some(&PlasticTables::get(alpha, ior)), wi, wo)
+            }
+            _ => self.eval_with(None, wi, wo),
+        }
+    }
+
+    /// [`Material::eval`] with the plastic's tables given (`Some` for [`Material::GgxPlastic`]:
+    /// [`MaterialEval`] fetches them once for many directions).
+    fn eval_with(&self, tables: Option<&PlasticTables>, wi: Vec3, wo: Vec3) -> Vec3 {
         let (ci, co) = (wi.z, wo.z);
         if ci <= 0.0 || co <= 0.0 {
             return Vec3::ZERO;
@@ -171,7 +212,7 @@ impl Material {
                 alpha,
                 ior,
             } => {
-                let t = PlasticTables::get(alpha, ior);
+                let t = tables.expect("a plastic's tables");
                 let (h, dg) = ggx_reflection(wi, wo, alpha);
                 let spec = specular * (mf::fresnel_dielectric(wi.dot(h), ior) * dg);
                 let diff = diffuse / (1.0 - t.internal_reflectance)
@@ -606,6 +647,44 @@ mod tests {
         }
         fn vec2(&mut self) -> Vec2 {
             Vec2::new(self.next_f32(), self.next_f32())
+        }
+    }
+
+    /// The prepared evaluator is exactly `eval`, for every kind of material.
+    #[test]
+    fn material_eval_is_eval() {
+        let materials = [
+            Material::Lambert {
+                albedo: Vec3::new(0.2, 0.5, 0.8),
+            },
+            Material::BlinnPhong {
+                diffuse: Vec3::splat(0.3),
+                specular: Vec3::splat(0.5),
+                exponent: 40.0,
+            },
+            Material::GgxConductor {
+                specular: Vec3::new(0.9, 0.6, 0.3),
+                alpha: 0.2,
+            },
+            Material::GgxPlastic {
+                diffuse: Vec3::splat(0.5),
+                specular: Vec3::ONE,
+                alpha: 0.15,
+                ior: 1.49,
+            },
+        ];
+        for m in materials {
+            let e = MaterialEval::new(m);
+            assert_eq!(*e.material(), m);
+            for t in 0..9 {
+                for p in 0..8 {
+                    let (wi, wo) = (
+                        dir(10.0 * t as f32, 45.0 * p as f32),
+                        dir(85.0 - 9.0 * t as f32, 30.0 * p as f32),
+                    );
+                    assert_eq!(e.eval(wi, wo), m.eval(wi, wo), "{m:?}");
+                }
+            }
         }
     }
 
