@@ -8,10 +8,10 @@ use relight_bake::sg::SgBakeSettings;
 use relight_bake::sh::{ShBakeSettings, ShTransferKind};
 use relight_bake::vmf::VmfBakeSettings;
 use relight_method::cuts::Cuts;
-use relight_method::memory::MemoryPlan;
+use relight_method::job::{bake_to_file, BakeJob};
 use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
-use relight_method::shard::{bake_part, Shard};
+use relight_method::shard::Shard;
 use relight_method::vmf::Vmf;
 use relight_method::{BakeContext, BakeInput, BakeSummary, Baked, Method, MethodKind};
 use serde_json::json;
@@ -204,14 +204,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 },
                 ..a.sh
             };
-            Sh::validate(&s)?;
-            eprintln!(
-                "{what}: SH order {}, {} transfer, {} samples",
-                s.order,
-                s.transfer.name(),
-                s.samples
-            );
-            bake_with::<Sh>(input, &s, &a, &ctx)?
+            bake_with::<Sh>(input, &s, &a, &ctx, &what)?
         }
         relight_method::BakeKind::Sg => {
             let s = SgSettings {
@@ -223,30 +216,14 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 },
                 blend: a.blend.blend()?,
             };
-            Sg::validate(&s)?;
-            let b = &s.bake;
-            eprintln!(
-                "{what}: SG, {} views, {} direct + {} indirect lobes, cube maps 6x{r}x{r} / 6x{q}x{q}, diffuse SH order {}",
-                10 * relight_bake::sg::VIEW_FREQUENCY.pow(2) + 2,
-                b.direct_lobes,
-                b.indirect_lobes,
-                b.diffuse_order,
-                r = b.direct_res,
-                q = b.indirect_res,
-            );
-            bake_with::<Sg>(input, &s, &a, &ctx)?
+            bake_with::<Sg>(input, &s, &a, &ctx, &what)?
         }
         relight_method::BakeKind::Cuts => {
             let s = CutsBakeSettings {
                 seed: a.seed,
                 ..a.cuts
             };
-            Cuts::validate(&s)?;
-            eprintln!(
-                "{what}: cuts, {} lights, {:?} light tree, sigma {}, cap {}",
-                s.lights, s.tree, s.sigma, s.max_cut
-            );
-            bake_with::<Cuts>(input, &s, &a, &ctx)?
+            bake_with::<Cuts>(input, &s, &a, &ctx, &what)?
         }
         relight_method::BakeKind::Vmf => {
             let s = VmfBakeSettings {
@@ -254,100 +231,42 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 max_bounces: a.bounces.unwrap_or(VmfBakeSettings::default().max_bounces),
                 ..a.vmf
             };
-            Vmf::validate(&s)?;
-            eprintln!(
-                "{what}: vmf, view level {}, {} paths per slice, {} bounce(s)",
-                s.view_level, s.paths, s.max_bounces
-            );
-            bake_with::<Vmf>(input, &s, &a, &ctx)?
+            bake_with::<Vmf>(input, &s, &a, &ctx, &what)?
         }
     };
     report(&a.out, &baked, out);
     Ok(())
 }
 
-/// Bake with `M` as the options say (whole, a part, checkpointed, or in chunks under a memory
-/// limit) and write the bundle.
+/// Check the settings, say what is baked (`what` and the settings), then bake with `M` as the
+/// options say ([`relight_method::job`]) and write the bundle.
 fn bake_with<M: Method>(
     input: BakeInput,
     settings: &M::Settings,
     a: &Args,
     ctx: &BakeContext,
+    what: &str,
 ) -> Result<BakeSummary>
 where
     M::Baked: Into<Baked>,
 {
-    let mut chunk = a
-        .checkpoint_vertices
-        .map(|n| usize::try_from(n).unwrap_or(usize::MAX));
-    if let Some(limit) = a.memory_limit {
-        let resident = relight_eval::bench::resident_bytes().unwrap_or(0);
-        match relight_method::memory::plan::<M>(input, settings, limit, resident)? {
-            MemoryPlan::Whole { estimate } => eprintln!(
-                "memory: about {} MiB expected, within --memory-limit {} MiB",
-                estimate >> 20,
-                limit >> 20
-            ),
-            MemoryPlan::Chunks {
-                chunk_vertices,
-                whole,
-                estimate,
-            } => {
-                let c = chunk.map_or(chunk_vertices, |c| c.min(chunk_vertices));
-                eprintln!(
-                    "memory: a whole bake needs about {} MiB, over --memory-limit {} MiB: baking chunks of {c} vertices through {} (about {} MiB)",
-                    whole >> 20,
-                    limit >> 20,
-                    relight_method::checkpoint::folder(&a.out).display(),
-                    estimate >> 20
-                );
-                chunk = Some(c);
-            }
-        }
-    }
-    if let Some(n) = chunk {
-        return Ok(relight_method::checkpoint::bake_resumable::<M>(
-            input,
-            settings,
-            ctx,
-            &a.out,
-            n,
-            a.resume,
-            |i, n| eprintln!("checkpoint: chunk {} of {n} done", i + 1),
-        )?);
-    }
-    let baked = bake_one::<M>(input, settings, a.shard, ctx)?;
-    baked.write(&a.out)?;
-    Ok(BakeSummary::of(&baked))
-}
-
-/// Bake the whole of `input` with `M`, or part `shard` of it.
-fn bake_one<M: Method>(
-    input: BakeInput,
-    settings: &M::Settings,
-    shard: Option<Shard>,
-    ctx: &BakeContext,
-) -> Result<Baked>
-where
-    M::Baked: Into<Baked>,
-{
-    let v = input.scene.mesh.vertex_count();
-    Ok(match shard {
-        Some(s) => {
-            let units = M::max_parts(input, settings);
-            let r = s.range(units);
-            eprintln!(
-                "part {}/{}: units {}..{} of {units} (a unit is one {})",
-                s.index,
-                s.count,
-                r.start,
-                r.end,
-                M::PART_UNIT
-            );
-            bake_part::<M>(input, settings, s, ctx)?
-        }
-        None => M::bake(input, settings, 0..v, ctx)?.into(),
-    })
+    M::validate(settings)?;
+    eprintln!("{what}: {}", M::settings_line(settings));
+    let job = BakeJob {
+        shard: a.shard,
+        checkpoint_vertices: a.checkpoint_vertices,
+        memory_limit: a.memory_limit,
+        resume: a.resume,
+        resident: relight_eval::bench::resident_bytes().unwrap_or(0),
+    };
+    Ok(bake_to_file::<M>(
+        input,
+        settings,
+        &job,
+        ctx,
+        &a.out,
+        |l| eprintln!("{l}"),
+    )?)
 }
 
 /// Print what was written.
@@ -382,7 +301,7 @@ fn report(path: &Path, baked: &BakeSummary, out: &Out) {
         "backend": r.backend,
         "f16": r.f16,
         "settings": serde_json::from_str::<serde_json::Value>(&baked.settings_json).unwrap_or_default(),
-        "sg": extra,
+        baked.kind.name(): extra,
     }));
 }
 

@@ -4,8 +4,9 @@
 use crate::args::{self, arg_names, named, refuse_foreign, Out};
 use anyhow::{bail, ensure, Context, Result};
 use clap::ArgMatches;
-use relight_bake::cuts::{CutsBakeSettings, LightTreeKind};
+use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::sg::SgBakeSettings;
+use relight_eval::reference::example_scenes;
 use relight_eval::{cuts, hybrid, sg, sg_basis, sh};
 use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgSettings;
@@ -102,18 +103,6 @@ pub struct Args {
     pub cuts: CutsBakeSettings,
 }
 
-/// The default experiments' example scene `name`, or an error saying where it was looked for.
-fn example(a: &Args, name: &str) -> Result<PathBuf> {
-    let p = a.examples.join(name);
-    if !p.is_file() {
-        bail!(
-            "{}: not found: the default experiments read relight's examples/ folder (run from the repository, pass --examples DIR, or give scenes)",
-            p.display()
-        );
-    }
-    Ok(p)
-}
-
 /// Print the tables the experiment wrote: markdown, or one JSON object with its rows.
 fn print(a: &Args, out: &Out) -> Result<()> {
     let (md, json) = match a.method {
@@ -206,17 +195,12 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         }
         Hybrid => {
             let scene = match a.scenes.as_slice() {
-                [] => example(&a, "teapot_table.json")?,
+                [] => example_scenes(&a.examples, &["teapot_table.json"])?.remove(0),
                 [s] => s.clone(),
                 _ => bail!("--method hybrid evaluates one scene at a time"),
             };
             let envs = if a.env.is_empty() {
-                let data = a
-                    .data
-                    .clone()
-                    .or_else(|| std::env::var_os("RELIGHT_SHARED").map(PathBuf::from))
-                    .context("no --env given: the default probes need the shared data folder (--data DIR or $RELIGHT_SHARED)")?;
-                hybrid::PROBES.iter().map(|p| data.join(p)).collect()
+                hybrid::default_probes(a.data.as_deref())?
             } else {
                 a.env.clone()
             };
@@ -238,9 +222,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 blend: None,
             };
             let experiments = if a.scenes.is_empty() {
-                for s in sg::DEFAULT_SCENES {
-                    example(&a, s)?;
-                }
+                example_scenes(&a.examples, &sg::DEFAULT_SCENES)?;
                 sg::select_experiments(sg::default_experiments(&a.examples), &a.experiments)?
             } else {
                 sg::scene_experiments(&a.scenes, &settings)
@@ -257,14 +239,8 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         }
         SgBasis => sg_basis::run(&a.out)?,
         Cuts => {
-            for &b in &a.light_cuts {
-                ensure!(b >= 1, "--light-cuts {b}: a light cut has at least 1 node");
-            }
             let scenes = if a.scenes.is_empty() {
-                cuts::DEFAULT_SCENES
-                    .iter()
-                    .map(|s| example(&a, s))
-                    .collect::<Result<Vec<_>>>()?
+                example_scenes(&a.examples, &cuts::DEFAULT_SCENES)?
             } else {
                 a.scenes.clone()
             };
@@ -275,11 +251,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                     progress: true,
                     ..a.cuts
                 },
-                trees: if tree_given {
-                    vec![a.cuts.tree]
-                } else {
-                    vec![LightTreeKind::Geometric, LightTreeKind::DataDriven]
-                },
+                trees: cuts::trees(tree_given.then_some(a.cuts.tree)),
                 light_cuts: a.light_cuts.clone(),
                 edited_materials: !a.scene_materials_only,
                 spp: a.spp,

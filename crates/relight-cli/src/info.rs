@@ -4,7 +4,7 @@
 use crate::args::{self, Out};
 use anyhow::{ensure, Result};
 use relight_bundle::Bundle;
-use relight_method::{from_bundle, Baked};
+use relight_method::from_bundle;
 use relight_sphere::sh;
 use serde_json::json;
 use std::path::PathBuf;
@@ -45,16 +45,9 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     }
     let methods: Vec<&str> = baked.kind().methods().iter().map(|m| m.name()).collect();
     out.line(format!("  renders with --method {}", methods.join(", ")));
-    let mut sg_json = json!(null);
-    let mut cuts_json = json!(null);
-    let mut vmf_json = json!(null);
-    let described = match &baked {
-        Baked::Sg(sg) => Some(sg.describe()),
-        Baked::Cuts(cuts) => Some(cuts.describe()),
-        Baked::Vmf(vmf) => Some(vmf.describe()),
-        Baked::Sh(_) => None,
-    };
-    if let Some((lines, j)) = described {
+    // The method's own figures under its name (null for the others).
+    let mut details = json!({"sg": null, "cuts": null, "vmf": null});
+    if let Some((lines, j)) = baked.describe() {
         let tensor_bytes: usize = b.tensors.values().map(|t| t.bytes.len()).sum();
         for l in lines {
             out.line(format!("  {l}"));
@@ -64,11 +57,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
             "  all tensors: {} bytes per vertex",
             tensor_bytes / v
         ));
-        match &baked {
-            Baked::Cuts(_) => cuts_json = j,
-            Baked::Vmf(_) => vmf_json = j,
-            _ => sg_json = j,
-        }
+        details[baked.kind().name()] = j;
     }
     let tensors: serde_json::Map<String, serde_json::Value> = b
         .tensors
@@ -93,9 +82,9 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         "record": baked.record(),
         "metadata": b.metadata,
         "tensors": tensors,
-        "sg": sg_json,
-        "cuts": cuts_json,
-        "vmf": vmf_json,
+        "sg": details["sg"],
+        "cuts": details["cuts"],
+        "vmf": details["vmf"],
     }));
     Ok(())
 }

@@ -137,10 +137,10 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     relight_method::check_frame_options(&opts, &camera)?;
     #[cfg(feature = "gpu")]
     if a.gpu {
-        let (image, summary, stats) =
-            gpu::render(&baked, &settings, &a.bundle, &env, &camera, &opts)?;
-        out.line(summary.clone());
-        write_all(&a.out, &image, &tm)?;
+        let f = relight_gpu::render_once(&baked, &settings, &a.bundle, &env, &camera, &opts)
+            .with_context(|| format!("--gpu --method {}", method.name()))?;
+        out.line(&f.line);
+        write_all(&a.out, &f.output.image, &tm)?;
         for o in &a.out {
             out.line(format!("wrote {}", o.display()));
         }
@@ -149,10 +149,10 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             "method": method.name(),
             "bundle": a.bundle,
             "outputs": a.out,
-            "width": image.width,
-            "height": image.height,
-            "summary": summary,
-            "gpu": stats,
+            "width": f.output.image.width,
+            "height": f.output.image.height,
+            "summary": f.line,
+            "gpu": {"prepare": f.prepare, "frame": f.output.stats},
         }));
         return Ok(());
     }
@@ -201,46 +201,4 @@ fn write_all(
         }
     }
     Ok(())
-}
-
-/// `render --gpu` (feature `gpu`): the frame of relight-gpu.
-#[cfg(feature = "gpu")]
-mod gpu {
-    use anyhow::{Context, Result};
-    use relight_method::{Baked, FrameOptions, FrameSettings};
-    use relight_render::Image;
-    use relight_scene::camera::Camera;
-    use relight_scene::scene::Environment;
-    use std::path::Path;
-
-    /// The image, the summary line and the stats (JSON) of one GPU frame.
-    pub fn render(
-        baked: &Baked,
-        settings: &FrameSettings,
-        path: &Path,
-        env: &Environment,
-        camera: &Camera,
-        opts: &FrameOptions,
-    ) -> Result<(Image, String, serde_json::Value)> {
-        let gpu = relight_gpu::Gpu::new()?;
-        let mut frame = relight_gpu::frame_of_path(&gpu, baked, settings, path)
-            .with_context(|| format!("--gpu --method {}", settings.method().name()))?;
-        let prep = frame.set_environment(env)?;
-        let f = frame.render(camera, opts)?;
-        let s = &f.stats;
-        let line = format!(
-            "{} on {}: environment {:.1} ms and uploads + GPU per-vertex work {:.1} ms (once per environment); frame {:.1} ms ({} passes, {} draw calls, {} bytes uploaded, CPU {:.2} ms)",
-            frame.summary(),
-            s.adapter,
-            prep.environment_ms,
-            prep.gpu_ms,
-            s.total_ms,
-            s.passes,
-            s.draw_calls,
-            s.bytes_uploaded,
-            s.cpu_ms
-        );
-        let stats = serde_json::json!({ "prepare": prep, "frame": s });
-        Ok((f.image, line, stats))
-    }
 }

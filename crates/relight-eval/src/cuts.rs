@@ -71,6 +71,14 @@ pub struct CutsEval {
     pub out: PathBuf,
 }
 
+/// The light trees to evaluate: `given`, else the geometric and the data-driven tree.
+pub fn trees(given: Option<LightTreeKind>) -> Vec<LightTreeKind> {
+    given.map_or(
+        vec![LightTreeKind::Geometric, LightTreeKind::DataDriven],
+        |t| vec![t],
+    )
+}
+
 /// One row: a bake, a material and a light-cut budget.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Row {
@@ -111,10 +119,11 @@ pub struct Row {
 /// # Errors
 /// Missing Mitsuba, unreadable inputs, bake, render or write failures.
 pub fn run(e: &CutsEval) -> Result<Vec<Row>> {
-    if e.light_cuts.is_empty() || e.trees.is_empty() {
-        return Err(crate::EvalError::Options(
-            "no light cut or light tree to evaluate".into(),
-        ));
+    if e.light_cuts.is_empty() || e.trees.is_empty() || e.light_cuts.contains(&0) {
+        return Err(crate::EvalError::Options(format!(
+            "light cuts {:?}, light trees {:?}: need at least one of each, and light cuts of at least 1 node",
+            e.light_cuts, e.trees
+        )));
     }
     let python = mitsuba_python()?;
     output::create_dir(&e.out)?;

@@ -32,7 +32,7 @@ use relight_render::compare::{self, Metrics};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
 use relight_scene::scene_file::SceneDesc;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The environments of the experiment when none are given, relative to the shared data
 /// folder: the thesis' Grace, St Peter's, Eucalyptus Grove and Uffizi, plus Pisa (sunlit
@@ -44,6 +44,22 @@ pub const PROBES: [&str; 5] = [
     "data/envmaps/debevec_latlong_256x128/uffizi.hdr",
     "data/envmaps/debevec_latlong_256x128/pisa.hdr",
 ];
+
+/// The [`PROBES`] in the shared data folder `data` (else `$RELIGHT_SHARED`).
+///
+/// # Errors
+/// [`crate::EvalError::Options`] when neither is given.
+pub fn default_probes(data: Option<&Path>) -> crate::Result<Vec<PathBuf>> {
+    let data = data
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("RELIGHT_SHARED").map(PathBuf::from))
+        .ok_or_else(|| {
+            crate::EvalError::Options(
+                "no --env given: the default probes need the shared data folder (--data DIR or $RELIGHT_SHARED)".into(),
+            )
+        })?;
+    Ok(PROBES.iter().map(|p| data.join(p)).collect())
+}
 
 /// The experiment's inputs.
 #[derive(Clone, Debug)]

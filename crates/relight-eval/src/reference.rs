@@ -211,6 +211,28 @@ pub fn stem(p: &Path) -> String {
         .to_string()
 }
 
+/// The example scenes `names` of an experiment's defaults, in the folder `examples` (the
+/// repository's `examples/`), each checked to exist.
+///
+/// # Errors
+/// [`EvalError::Options`] naming the first scene not found and where it was looked for.
+pub fn example_scenes(examples: &Path, names: &[&str]) -> Result<Vec<PathBuf>> {
+    names
+        .iter()
+        .map(|name| {
+            let p = examples.join(name);
+            if p.is_file() {
+                Ok(p)
+            } else {
+                Err(EvalError::Options(format!(
+                    "{}: not found: the default experiments read relight's examples/ folder (run from the repository, pass --examples DIR, or give scenes)",
+                    p.display()
+                )))
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -161,3 +161,53 @@ pub fn frame_of_path<'a>(
         ))),
     }
 }
+
+/// One frame rendered from scratch (`relight render --gpu`): its image, a line saying what it
+/// cost, and the costs.
+#[derive(Clone, Debug)]
+pub struct OneFrame {
+    /// The frame.
+    pub output: GpuOutput,
+    /// Preparing the environment.
+    pub prepare: PrepareStats,
+    /// The frame's summary, adapter and costs in one line.
+    pub line: String,
+}
+
+/// Start the GPU, prepare `env` and render `camera` once with `settings`' method over `baked`
+/// (read from `path`, named in errors).
+///
+/// # Errors
+/// No Vulkan adapter, and as [`frame_of_path`], [`GpuFrame::set_environment`] and
+/// [`GpuFrame::render`].
+pub fn render_once(
+    baked: &Baked,
+    settings: &FrameSettings,
+    path: &Path,
+    env: &Environment,
+    camera: &Camera,
+    opts: &FrameOptions,
+) -> Result<OneFrame, GpuError> {
+    let gpu = Gpu::new()?;
+    let mut frame = frame_of_path(&gpu, baked, settings, path)?;
+    let prepare = frame.set_environment(env)?;
+    let output = frame.render(camera, opts)?;
+    let s = &output.stats;
+    let line = format!(
+        "{} on {}: environment {:.1} ms and uploads + GPU per-vertex work {:.1} ms (once per environment); frame {:.1} ms ({} passes, {} draw calls, {} bytes uploaded, CPU {:.2} ms)",
+        frame.summary(),
+        s.adapter,
+        prepare.environment_ms,
+        prepare.gpu_ms,
+        s.total_ms,
+        s.passes,
+        s.draw_calls,
+        s.bytes_uploaded,
+        s.cpu_ms
+    );
+    Ok(OneFrame {
+        output,
+        prepare,
+        line,
+    })
+}

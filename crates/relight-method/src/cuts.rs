@@ -36,6 +36,13 @@ impl Method for Cuts {
         8 + 10 * u64::from(s.max_cut)
     }
 
+    fn settings_line(s: &CutsBakeSettings) -> String {
+        format!(
+            "cuts, {} lights, {:?} light tree, sigma {}, cap {}",
+            s.lights, s.tree, s.sigma, s.max_cut
+        )
+    }
+
     fn streams(_: &CutsBakeSettings) -> Option<&'static str> {
         Some("the cuts merge rebases every part's cut offsets in memory (not streamed yet)")
     }

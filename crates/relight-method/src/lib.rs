@@ -41,6 +41,7 @@ pub mod checkpoint;
 pub mod cuts;
 mod error;
 pub mod hybrid;
+pub mod job;
 pub mod memory;
 pub mod sg;
 pub mod sh;
@@ -216,6 +217,9 @@ pub trait Method {
     /// Bytes of one vertex's rows of the bake in memory ([`crate::memory`]).
     fn row_bytes(input: BakeInput, settings: &Self::Settings) -> u64;
 
+    /// One line naming the settings that matter, for the bake's progress report.
+    fn settings_line(settings: &Self::Settings) -> String;
+
     /// `None` if the bake can be baked in chunks and merged by streaming; else why not
     /// ([`crate::memory`]).
     fn streams(settings: &Self::Settings) -> Option<&'static str>;
@@ -368,6 +372,17 @@ impl Baked {
         }
     }
 
+    /// The method's description of the bake (lines for people, the same figures as JSON),
+    /// for the methods that have one.
+    pub fn describe(&self) -> Option<(Vec<String>, serde_json::Value)> {
+        match self {
+            Baked::Sg(sg) => Some(sg.describe()),
+            Baked::Cuts(cuts) => Some(cuts.describe()),
+            Baked::Vmf(vmf) => Some(vmf.describe()),
+            Baked::Sh(_) => None,
+        }
+    }
+
     /// Its settings as recorded (JSON).
     pub fn settings_json(&self) -> String {
         match self {
@@ -469,12 +484,7 @@ impl BakeSummary {
             vertices: b.scene().mesh.vertex_count(),
             triangles: b.scene().mesh.triangle_count(),
             settings_json: b.settings_json(),
-            describe: match b {
-                Baked::Sg(sg) => Some(sg.describe()),
-                Baked::Cuts(cuts) => Some(cuts.describe()),
-                Baked::Vmf(vmf) => Some(vmf.describe()),
-                Baked::Sh(_) => None,
-            },
+            describe: b.describe(),
         }
     }
 }

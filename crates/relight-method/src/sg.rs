@@ -295,6 +295,19 @@ impl Method for Sg {
             + comps * views * 4
     }
 
+    fn settings_line(s: &SgSettings) -> String {
+        let b = &s.bake;
+        format!(
+            "SG, {} views, {} direct + {} indirect lobes, cube maps 6x{r}x{r} / 6x{q}x{q}, diffuse SH order {}",
+            10 * relight_bake::sg::VIEW_FREQUENCY.pow(2) + 2,
+            b.direct_lobes,
+            b.indirect_lobes,
+            b.diffuse_order,
+            r = b.direct_res,
+            q = b.indirect_res,
+        )
+    }
+
     fn streams(_: &SgSettings) -> Option<&'static str> {
         Some("the sg merge aligns flood-fill regions over the whole mesh")
     }

@@ -162,6 +162,15 @@ impl Method for Sh {
         relight_bake::sh::transfer_bytes(s, 1) as u64 + 12
     }
 
+    fn settings_line(s: &ShBakeSettings) -> String {
+        format!(
+            "SH order {}, {} transfer, {} samples",
+            s.order,
+            s.transfer.name(),
+            s.samples
+        )
+    }
+
     fn streams(s: &ShBakeSettings) -> Option<&'static str> {
         (s.transfer == ShTransferKind::Interreflected)
             .then_some("each interreflection bounce gathers the previous bounce of every vertex")

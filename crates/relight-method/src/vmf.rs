@@ -42,6 +42,13 @@ impl Method for Vmf {
         (views * std::mem::size_of::<TransferSlice>()) as u64 + 1
     }
 
+    fn settings_line(s: &VmfBakeSettings) -> String {
+        format!(
+            "vmf, view level {}, {} paths per slice, {} bounce(s)",
+            s.view_level, s.paths, s.max_bounces
+        )
+    }
+
     fn streams(_: &VmfBakeSettings) -> Option<&'static str> {
         Some("the vmf merge concatenates the parts' slices in memory (not streamed yet)")
     }
