@@ -22,6 +22,8 @@
 use crate::reference::{coverage_mask, mean_lum, mitsuba_python, stem, with_width, Job};
 use crate::{output, Result};
 use glam::Vec3;
+use relight_bake::cuts::light_cut::LightCut;
+use relight_bake::cuts::samples::sample_power;
 use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::cuts::LightTreeKind;
 use relight_method::cuts::{Cuts, CutsFrameSettings};
@@ -203,6 +205,9 @@ fn run_scene(
         };
         let storage = Cuts::store(cb)?.to_bytes().len() as f64 / (1 << 20) as f64;
         let tname = format!("{tree:?}").to_lowercase();
+        // The light samples' power, for the illumination cuts' lengths in the table.
+        let power = sample_power(&cb.bake.samples, &scene.env)
+            .map_err(|x| crate::EvalError::Options(x.to_string()))?;
         for (k, (mname, material)) in materials.iter().enumerate() {
             if k > 0 && tree != LightTreeKind::Geometric {
                 continue; // edited materials: the geometric tree's bake only
@@ -252,7 +257,9 @@ fn run_scene(
                     mean_cut: cb.bake.cuts.mean_len(),
                     capped: cb.bake.cuts.capped.len(),
                     light_cut: budget,
-                    light_cut_nodes: light_cut_nodes(&frame.summary()),
+                    light_cut_nodes: LightCut::build(&cb.bake.tree, &power, fs.light_sigma, budget)
+                        .map_err(|x| crate::EvalError::Options(x.to_string()))?
+                        .len(),
                     frame_ms,
                     frame_512_ms: o512.times.vertex_ms + o512.times.pixel_ms,
                     rel_rmse: m.rel_rmse,
@@ -299,17 +306,6 @@ fn terms_table(rows: &[(String, terms::TermsRow)]) -> String {
     md
 }
 
-/// The illumination cut's length from a cuts frame's summary (`light cut N nodes`), 0 if
-/// absent.
-fn light_cut_nodes(summary: &str) -> usize {
-    summary
-        .split("light cut ")
-        .nth(1)
-        .and_then(|s| s.split(' ').next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or(0)
-}
-
 /// The results as markdown: Fig. 9's table, then the error per light cut (Fig. 10).
 fn table(rows: &[Row]) -> String {
     let mut md = String::from(
@@ -344,17 +340,4 @@ fn table(rows: &[Row]) -> String {
          after the bake (`render --material`); the same bundle renders them.\n",
     );
     md
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn light_cut_length_is_read_from_the_summary() {
-        let s = "cuts: 10 vertices, 2048 lights, mean visibility cut 3.0 nodes, light cut 97 \
-                 nodes (error bound met)";
-        assert_eq!(light_cut_nodes(s), 97);
-        assert_eq!(light_cut_nodes("cuts: no lighting yet"), 0);
-    }
 }
