@@ -13,7 +13,7 @@
 //!
 //! Materials map to Mitsuba plugins as documented on [`Material`]: `Lambert` -> `diffuse`,
 //! `GgxConductor` -> `roughconductor` (ggx, `material = "none"`), `GgxPlastic` ->
-//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong has no Mitsuba counterpart and is refused.
+//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong and Ward have no Mitsuba counterpart and are refused.
 
 use crate::image::Image;
 use relight_scene::error::SceneError;
@@ -51,11 +51,13 @@ pub enum MitsubaError {
         /// What is wrong with it.
         error: MaterialError,
     },
-    /// A material in use is Blinn-Phong, which Mitsuba 3 does not have.
-    #[error("material {index}: Mitsuba 3 has no Blinn-Phong BSDF")]
-    BlinnPhong {
+    /// A material in use is a model Mitsuba 3 does not have (Blinn-Phong, Ward).
+    #[error("material {index}: Mitsuba 3 has no {model} BSDF")]
+    Unsupported {
         /// Material index in the scene.
         index: usize,
+        /// The model's name.
+        model: &'static str,
     },
     /// `scene.json` could not be serialised.
     #[error("scene.json: {0}")]
@@ -116,7 +118,8 @@ pub fn export_mitsuba(
         material
             .validate()
             .map_err(|error| MitsubaError::Material { index: m, error })?;
-        let bsdf = bsdf_json(material).ok_or(MitsubaError::BlinnPhong { index: m })?;
+        let bsdf =
+            bsdf_json(material).map_err(|model| MitsubaError::Unsupported { index: m, model })?;
         let name = format!("shape_{m}.ply");
         relight_scene::io::ply::write_ply(&dir.join(&name), &sub)?;
         shapes.push(json!({ "ply": name, "bsdf": bsdf }));
@@ -150,10 +153,10 @@ pub fn export_mitsuba(
     Ok(path)
 }
 
-/// The Mitsuba BSDF description of a material (see the module docs); `None` for Blinn-Phong,
-/// which Mitsuba 3 does not have.
-fn bsdf_json(m: &Material) -> Option<Value> {
-    Some(match *m {
+/// The Mitsuba BSDF description of a material (see the module docs); the model's name for
+/// Blinn-Phong and Ward, which Mitsuba 3 does not have.
+fn bsdf_json(m: &Material) -> Result<Value, &'static str> {
+    Ok(match *m {
         Material::Lambert { albedo } => {
             json!({ "type": "diffuse", "reflectance": albedo.to_array() })
         }
@@ -169,7 +172,8 @@ fn bsdf_json(m: &Material) -> Option<Value> {
             "type": "roughplastic", "alpha": alpha, "int_ior": ior, "ext_ior": 1.0,
             "diffuse_reflectance": diffuse.to_array(), "specular_reflectance": specular.to_array(),
         }),
-        Material::BlinnPhong { .. } => return None,
+        Material::BlinnPhong { .. } => return Err("Blinn-Phong"),
+        Material::Ward { .. } => return Err("Ward"),
     })
 }
 
@@ -380,7 +384,16 @@ mod tests {
         let mut bp = scene.clone();
         bp.mesh.material_ids.iter_mut().for_each(|m| *m = 1);
         let e = export_mitsuba(&bp, &dir, 16, 3).unwrap_err();
-        assert!(matches!(e, MitsubaError::BlinnPhong { index: 1 }), "{e:?}");
+        assert!(
+            matches!(
+                e,
+                MitsubaError::Unsupported {
+                    index: 1,
+                    model: "Blinn-Phong"
+                }
+            ),
+            "{e:?}"
+        );
         assert_eq!(
             e.to_string(),
             "material 1: Mitsuba 3 has no Blinn-Phong BSDF"

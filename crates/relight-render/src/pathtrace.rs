@@ -29,7 +29,7 @@ use relight_scene::material::{power_heuristic, Material};
 use relight_scene::scene::Scene;
 use relight_scene::{Mat3, Vec3};
 use relight_sphere::env_sampler::EnvSampler;
-use relight_sphere::warp::{Frame, Rng};
+use relight_sphere::warp::Rng;
 
 /// Depth from which Russian roulette may end paths (Mitsuba 3's default `rr_depth`).
 pub const RR_DEPTH: u32 = 5;
@@ -210,13 +210,6 @@ impl Ctx<'_> {
             let tri = hit.tri as usize;
             let p = ray.at(hit.t);
             let ng = mesh.geometric_normal(tri);
-            let shading = Frame::from_normal(mesh.shading_normal(tri, hit.u, hit.v));
-            let wi_world = -ray.dir.normalize();
-            let wi = shading.to_local(wi_world);
-            // One-sided materials see nothing from below; reject inconsistent sides.
-            if wi.z <= 0.0 || wi_world.dot(ng) * wi.z <= 0.0 {
-                break;
-            }
             let material: Material = match mesh
                 .material_ids
                 .get(tri)
@@ -228,6 +221,13 @@ impl Ctx<'_> {
                     Material::default()
                 }
             };
+            let shading = material.shading_frame(mesh.shading_normal(tri, hit.u, hit.v));
+            let wi_world = -ray.dir.normalize();
+            let wi = shading.to_local(wi_world);
+            // One-sided materials see nothing from below; reject inconsistent sides.
+            if wi.z <= 0.0 || wi_world.dot(ng) * wi.z <= 0.0 {
+                break;
+            }
 
             // Environment sampling (next-event estimation), MIS-weighted against BSDF sampling.
             let (d_env, pdf_env) = self.sampler.sample(rng.next_vec2());

@@ -28,7 +28,6 @@ use relight_scene::material::microfacet;
 use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
-use relight_sphere::warp::Frame;
 use std::f32::consts::{FRAC_1_PI, PI};
 
 /// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated (directions
@@ -74,12 +73,12 @@ impl<'a> CutsShader<'a> {
     /// still holds visible lights above it (the cut's mean says how much): its BRDF is
     /// evaluated at that direction lifted onto the horizon instead of dropping it.
     pub fn shade_fragment(&self, light: &LightCut, f: &Fragment, eye: Vec3) -> Vec3 {
-        let frame = Frame::from_normal(f.shading_normal);
+        let material = &self.materials[self.mesh.material_ids[f.tri as usize] as usize];
+        let frame = material.material().shading_frame(f.shading_normal);
         let wi = frame.to_local((eye - f.position).normalize_or_zero());
         if wi.z <= 0.0 {
             return Vec3::ZERO; // one-sided materials, as the path tracer's
         }
-        let material = &self.materials[self.mesh.material_ids[f.tri as usize] as usize];
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
         shade(light, cuts, f.bary, |w| {
@@ -182,8 +181,8 @@ impl<'a> CutsShader<'a> {
                 (Material::GgxConductor { specular, alpha }, CutFunction::Visibility) => {
                     specular * t.ggx_sum(b, n, view, alpha)
                 }
-                _ => {
-                    let frame = Frame::from_normal(n);
+                (m, _) => {
+                    let frame = m.shading_frame(n);
                     let wi = frame.to_local(view);
                     let mut sum = Vec3::ZERO;
                     for k in 0..t.len() {
@@ -387,6 +386,9 @@ impl TriangleCut {
 }
 
 #[cfg(test)]
+mod ward_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use relight_bake::cuts::light_cut::LightCut;
@@ -394,6 +396,7 @@ mod tests {
     use relight_bake::cuts::{bake_range, CutsBakeSettings};
     use relight_scene::accel::{build, Backend};
     use relight_scene::shapes::ground_plane;
+    use relight_sphere::warp::Frame;
     use relight_sphere::EnvMap;
 
     /// A lone plane under a white sky, seen from above at 45 degrees, for `function`.

@@ -78,7 +78,9 @@ impl GlossyKernel {
                 specular,
                 ior: Some(ior),
             },
-            Material::Lambert { .. } | Material::BlinnPhong { .. } => Kind::Generic(*m),
+            Material::Lambert { .. } | Material::BlinnPhong { .. } | Material::Ward { .. } => {
+                Kind::Generic(*m)
+            }
         };
         let g1o = match kind {
             Kind::Ggx { alpha, .. } => visible
