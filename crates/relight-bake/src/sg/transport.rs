@@ -4,7 +4,7 @@
 //! # Conventions
 //! * Views are the vertices of `Icosphere::new(3)` in the **global** frame, pointing from the
 //!   vertex towards the viewer (`wi` of [`Material::eval`]); texels `w` point towards the
-//!   light (`wo`). The BRDF frame is [`Frame::from_normal`] of the vertex's shading normal.
+//!   light (`wo`). The BRDF frame is [`Material::shading_frame`] of the vertex's shading normal.
 //! * A cube-map value is a kernel per steradian: `L_o(x, v) = sum_w T(w) L(w) dA(w)` with
 //!   `dA` the exact texel solid angle ([`relight_sphere::cubemap::texel_solid_angle`]); `T`
 //!   is evaluated at texel centres (thesis sec. 2.2.1: "evaluated for each texel").
@@ -415,7 +415,7 @@ impl<'a> TransportContext<'a> {
             out.fill(Vec3::ZERO);
             return;
         }
-        let frame = Frame::from_normal(n);
+        let frame = m.shading_frame(n);
         let visible = self.visible_texels_at(p, ng, &frame);
         let mut kernel = GlossyKernel::new(m, &visible, self.direct.len());
         let (d, _) = self.clamp_view(n, view);
@@ -546,7 +546,7 @@ impl<'a> TransportContext<'a> {
         let bary = [1.0 - hit.u - hit.v, hit.u, hit.v];
         let k = (0..3).fold(0, |k, j| if bary[j] > bary[k] { j } else { k });
         let m = &self.materials[corners[k] as usize];
-        let frame = Frame::from_normal(ns);
+        let frame = m.shading_frame(ns);
         let wi = frame.to_local(-dir);
         let s = m.sample(wi, path.rng.next_vec2(), path.rng.next_f32())?;
         let next = frame.to_world(s.wo);
@@ -594,8 +594,8 @@ impl TransportSource for TransportContext<'_> {
             out.direct.fill(Vec3::ZERO);
             return;
         };
-        let frame = Frame::from_normal(n);
         let m = &self.materials[x];
+        let frame = m.shading_frame(n);
         // Visibility cube map, then the diffuse SH part from it.
         let visible = self.visible_texels(x, &frame);
         self.diffuse(m, &visible, &mut out.diffuse_sh);
