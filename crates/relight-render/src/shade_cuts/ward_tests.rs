@@ -78,7 +78,7 @@ fn ward_chosen_after_the_bake_matches_the_path_tracer_and_follows_its_tangent() 
             mesh: mesh.clone(),
             materials,
             env: env.clone(),
-            camera: camera.clone(),
+            camera,
         };
         let pts = crate::pathtrace::PtSettings {
             spp: 256,

@@ -78,7 +78,10 @@ pub fn pdf(wi: Vec3, wo: Vec3, ax: f32, ay: f32) -> f32 {
 pub fn tangent_frame(n: Vec3, tangent: Vec3) -> Option<(Vec3, Vec3)> {
     let s = tangent - n * n.dot(tangent);
     let len2 = s.length_squared();
-    if !(len2 > 1e-8 * tangent.length_squared().max(1e-30)) {
+    // Also refuses NaN.
+    if len2.partial_cmp(&(1e-8 * tangent.length_squared().max(1e-30)))
+        != Some(std::cmp::Ordering::Greater)
+    {
         return None;
     }
     let s = s / len2.sqrt();
