@@ -40,6 +40,8 @@ pub struct CutsShader<'a> {
     materials: Vec<MaterialEval>,
     bake: &'a CutsBake,
     function: CutFunction,
+    /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
+    spread: bool,
 }
 
 impl<'a> CutsShader<'a> {
@@ -65,7 +67,23 @@ impl<'a> CutsShader<'a> {
             materials: materials.into_iter().map(MaterialEval::new).collect(),
             bake,
             function,
+            spread: false,
         }
+    }
+
+    /// With `on`, every material that is not purely diffuse has its BRDF averaged over each
+    /// merged cluster's spread ([`LightCut::spread_average`], five evaluations where a
+    /// cluster is wider than [`relight_bake::cuts::light_cut::SPREAD_MIN_ANGLE`]) instead of
+    /// evaluated at the cluster's direction alone; Lambert keeps its one evaluation.
+    pub fn with_cluster_spread(mut self, on: bool) -> Self {
+        self.spread = on;
+        self
+    }
+
+    /// Whether `material` is shaded with the cluster spread.
+    #[inline]
+    fn spreads(&self, material: &MaterialEval) -> bool {
+        self.spread && !material.material().is_diffuse_only()
     }
 
     /// Outgoing radiance of fragment `f` towards the eye at `eye` under `light`. With cuts
@@ -81,7 +99,7 @@ impl<'a> CutsShader<'a> {
         }
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
-        shade(light, cuts, f.bary, |w| {
+        shade(light, cuts, f.bary, self.spreads(material), |w| {
             self.brdf(material, wi, frame.to_local(w))
         })
     }
@@ -126,7 +144,7 @@ impl<'a> CutsShader<'a> {
             TRIANGLE_CUT.with_borrow_mut(|t| {
                 t.build(self, light, tri);
                 if stage == CutsStage::Full {
-                    self.shade_triangle(t, tri, fs, eye, out);
+                    self.shade_triangle(light, t, tri, fs, eye, out);
                 }
             })
         })
@@ -153,6 +171,7 @@ impl<'a> CutsShader<'a> {
     /// Eq. 5 at each fragment of triangle `tri` from its merged cut `t`.
     fn shade_triangle(
         &self,
+        light: &LightCut,
         t: &TriangleCut,
         tri: u32,
         fs: &[Fragment],
@@ -160,6 +179,7 @@ impl<'a> CutsShader<'a> {
         out: &mut [Vec3],
     ) {
         let material = &self.materials[self.mesh.material_ids[tri as usize] as usize];
+        let spread = self.spreads(material);
         for (f, o) in fs.iter().zip(out.iter_mut()) {
             let n = f.shading_normal;
             let view = (eye - f.position).normalize_or_zero();
@@ -178,7 +198,9 @@ impl<'a> CutsShader<'a> {
                     albedo * FRAC_1_PI * t.lambert_sum(b, n)
                 }
                 // The GGX conductor in world space over lanes (the same definition).
-                (Material::GgxConductor { specular, alpha }, CutFunction::Visibility) => {
+                (Material::GgxConductor { specular, alpha }, CutFunction::Visibility)
+                    if !spread =>
+                {
                     specular * t.ggx_sum(b, n, view, alpha)
                 }
                 (m, _) => {
@@ -188,7 +210,13 @@ impl<'a> CutsShader<'a> {
                     for k in 0..t.len() {
                         let (power, v, dir) = t.cluster(k, b);
                         if v > 0.0 {
-                            sum += power * v * self.brdf(material, wi, frame.to_local(dir));
+                            let f = |w: Vec3| self.brdf(material, wi, frame.to_local(w));
+                            let f = if spread {
+                                light.spread_average(t.node[k], f)
+                            } else {
+                                f(dir)
+                            };
+                            sum += power * v * f;
                         }
                     }
                     sum
@@ -249,6 +277,8 @@ struct TriangleCut {
     /// The cluster's mean direction ([`relight_bake::cuts::tree::LightTree::direction`]),
     /// per axis.
     dir: [Vec<f32>; 3],
+    /// The cluster's tree node (post-order index; [`LightCut::spread_average`]).
+    node: Vec<u32>,
     /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
     sums: [Vec3; 3],
     /// Clusters of this triangle, padding included (the arrays may be longer).
@@ -298,6 +328,10 @@ impl TriangleCut {
                 return;
             }
             let dir = light.direction(node.index);
+            if self.node.len() < bound {
+                self.node.resize(bound, 0);
+            }
+            self.node[n] = node.index;
             for j in 0..3 {
                 let v = dequantise(q[j]);
                 sums[j] += power * v;
@@ -527,8 +561,9 @@ mod tests {
                 bake_range(&mesh, caster.as_ref(), &settings, 0..mesh.vertex_count()).unwrap();
             let power = sample_power(&bake.samples, &env).unwrap();
             let light = LightCut::build(&bake.tree, &power, 2.0, 256).unwrap();
-            for material in materials {
-                let shader = CutsShader::new(&mesh, vec![material], &bake, function);
+            for (material, spread) in materials.iter().flat_map(|&m| [(m, false), (m, true)]) {
+                let shader = CutsShader::new(&mesh, vec![material], &bake, function)
+                    .with_cluster_spread(spread);
                 let opts = RasterOptions { supersample: 2 };
                 let fast = shader.render(&light, &camera, None, &opts);
                 let slow = shader.render_per_fragment(&light, &camera, None, &opts);
@@ -545,7 +580,7 @@ mod tests {
                     // corner): f32 rounding only.
                     assert!(
                         (*p - *q).abs().max_element() <= 1e-5 * peak,
-                        "{function:?} {material:?}: {p} vs {q}"
+                        "{function:?} {material:?} spread {spread}: {p} vs {q}"
                     );
                 }
             }

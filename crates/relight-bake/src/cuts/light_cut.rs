@@ -24,6 +24,16 @@
 //! at 128 nodes, 29.1 % at 256, 7.5 % at 512; weighted: 28.7, 20.9, 7.4 %). Weighting is
 //! not a cure (one direction still stands for a cluster mixing a sun and sky), so the
 //! evaluation's GGX rows still vary by light cut more than by the reference's noise.
+//!
+//! **Cluster spread** ([`LightCut::spread_average`], opt-in, measured in docs/RESULTS.md
+//! §11): one direction stands for a cluster whose lights spread over more than a glossy
+//! lobe, and which cluster lands in a mirror direction changes with every split (the
+//! dragon's GGX plastic was worse at 256 light-cut nodes than at 128). With it, a merged
+//! cluster's BRDF is the mean of five evaluations: at its direction `mu` and at four
+//! directions around it at the angle `theta_p` of the symmetric five-point rule whose mean
+//! resultant length matches the cluster's, `(1 + 4 cos theta_p) / 5 = R` with `R = |sum y_i
+//! w_i| / sum y_i` (the first moment of its lights' directions; `cos theta_p` clamped to
+//! `[-1, 1]`). Clusters with `theta_p` below [`SPREAD_MIN_ANGLE`] keep one evaluation.
 
 use super::cut::{select_cut, Keyed, NodeStats};
 use super::tree::{LightTree, NodeKind};
@@ -36,6 +46,9 @@ use std::collections::BinaryHeap;
 pub const LIGHT_CUT_BUDGETS: [usize; 3] = [128, 256, 512];
 /// Default `sigma` of the illumination cut's error phase (normalised luminance units).
 pub const DEFAULT_LIGHT_SIGMA: f32 = 2.0;
+/// Below this angle (radians) of the five-point rule a cluster is shaded at its direction
+/// alone ([`LightCut::spread_average`]): about the angular radius of one light of 32K.
+pub const SPREAD_MIN_ANGLE: f32 = 0.01;
 
 /// An illumination cut: nodes in increasing post-order index with their cluster means.
 #[derive(Clone, Debug, PartialEq)]
@@ -51,6 +64,9 @@ pub struct LightCut {
     /// Every tree node's luminance-weighted mean light direction (module docs), by post-order
     /// index.
     pub dirs: Vec<Vec3>,
+    /// Every tree node's `cos theta_p` of the five-point rule (module docs), by post-order
+    /// index.
+    pub spread_cos: Vec<f32>,
 }
 
 impl LightCut {
@@ -64,6 +80,25 @@ impl LightCut {
     #[inline]
     pub fn direction(&self, node: u32) -> Vec3 {
         self.dirs[node as usize]
+    }
+
+    /// `brdf` averaged over tree node `node`'s cluster by the five-point rule of the module
+    /// docs ("Cluster spread"); `brdf(direction(node))` for a cluster narrower than
+    /// [`SPREAD_MIN_ANGLE`].
+    #[inline]
+    pub fn spread_average(&self, node: u32, mut brdf: impl FnMut(Vec3) -> Vec3) -> Vec3 {
+        let mu = self.direction(node);
+        let c = self.spread_cos[node as usize];
+        if c >= SPREAD_MIN_ANGLE.cos() {
+            return brdf(mu);
+        }
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        let f = relight_sphere::warp::Frame::from_normal(mu);
+        let mut sum = brdf(mu);
+        for (x, y) in [(s, 0.0), (-s, 0.0), (0.0, s), (0.0, -s)] {
+            sum += brdf(f.s * x + f.t * y + f.n * c);
+        }
+        sum * 0.2
     }
 
     /// Whether the cut has no node (never for a built cut).
@@ -138,12 +173,14 @@ impl LightCut {
                 Vec3::new(c(0), c(1), c(2))
             })
             .collect();
+        let (dirs, spread_cos) = weighted_directions(tree, &y);
         Ok(LightCut {
             leftleaf: index.iter().map(|&p| tree.node(p).leftleaf).collect(),
             index,
             value,
             error_bound_met,
-            dirs: weighted_directions(tree, &y),
+            dirs,
+            spread_cos,
         })
     }
 }
@@ -151,8 +188,10 @@ impl LightCut {
 /// Every node's mean direction weighted by `y` (one weight per light), summed up the
 /// post-order array (children precede their parent); the tree's own direction where the
 /// weights vanish or the weighted directions cancel (a mean shorter than 1e-3: a cluster
-/// about as symmetric as the whole sphere, whose direction means little either way).
-fn weighted_directions(tree: &LightTree, y: &[f64]) -> Vec<Vec3> {
+/// about as symmetric as the whole sphere, whose direction means little either way); and
+/// each node's `cos theta_p = (5 R - 1) / 4` of the five-point rule (module docs), 1 where
+/// the weights vanish.
+fn weighted_directions(tree: &LightTree, y: &[f64]) -> (Vec<Vec3>, Vec<f32>) {
     let nodes = tree.nodes();
     let mut sums: Vec<([f64; 3], f64)> = Vec::with_capacity(nodes.len());
     for (i, node) in nodes.iter().enumerate() {
@@ -171,7 +210,19 @@ fn weighted_directions(tree: &LightTree, y: &[f64]) -> Vec<Vec3> {
         };
         sums.push(s);
     }
-    sums.iter()
+    let spread_cos = sums
+        .iter()
+        .map(|(s, w)| {
+            if *w > 0.0 {
+                let r = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt() / w;
+                ((5.0 * r - 1.0) / 4.0).clamp(-1.0, 1.0) as f32
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let dirs = sums
+        .iter()
         .enumerate()
         .map(|(i, (s, w))| {
             let len = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
@@ -185,7 +236,8 @@ fn weighted_directions(tree: &LightTree, y: &[f64]) -> Vec<Vec3> {
                 tree.direction(i as u32)
             }
         })
-        .collect()
+        .collect();
+    (dirs, spread_cos)
 }
 
 /// Phase 2: split the brightest inner node (largest `|C| <y>`) until `budget` nodes or only
@@ -243,6 +295,40 @@ mod tests {
         });
         let power = sample_power(&s, &Environment::new(map)).unwrap();
         (s, t, power)
+    }
+
+    /// The five-point rule keeps each cluster's first moment: for a BRDF linear in the
+    /// direction, `f(w) = a . w`, the average over the rule is the luminance-weighted mean
+    /// of `f` over the cluster's lights (math against math, every node of a tree under a
+    /// sky with a sun); and a constant BRDF stays constant.
+    #[test]
+    fn spread_average_keeps_each_clusters_first_moment() {
+        let (s, t, power) = setup(2048);
+        let c = LightCut::build(&t, &power, 2.0, 64).unwrap();
+        let a = Vec3::new(0.3, -1.2, 0.7);
+        let order = t.lights_in_order();
+        let mut wide = 0;
+        for p in 0..t.nodes().len() as u32 {
+            let node = t.node(p);
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for &l in &order[node.first as usize..(node.first + node.leaves) as usize] {
+                let y = luminance(power[l as usize]) as f64;
+                num += y * a.dot(s.dirs[l as usize]) as f64;
+                den += y;
+            }
+            let got = c.spread_average(p, |w| Vec3::splat(a.dot(w))).x as f64;
+            let konst = c.spread_average(p, |_| Vec3::splat(2.5)).x;
+            assert!((konst - 2.5).abs() < 1e-5, "node {p}: {konst}");
+            if c.spread_cos[p as usize] < SPREAD_MIN_ANGLE.cos() {
+                wide += 1;
+                let want = num / den;
+                assert!(
+                    (got - want).abs() < 1e-4 * a.length() as f64,
+                    "node {p}: {got} vs {want}"
+                );
+            }
+        }
+        assert!(wide > 100, "the tree has wide clusters: {wide}");
     }
 
     fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

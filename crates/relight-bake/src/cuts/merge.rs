@@ -147,11 +147,13 @@ pub fn interpolate<const N: usize>(
 /// visibility cuts interpolated with barycentric weights `bary`, and the BRDF `brdf(w)`
 /// (without the cosine, which the visibility holds) sampled at each merged cluster's
 /// direction ([`LightCut::direction`]: its lights' luminance-weighted mean direction), all in
-/// one traversal: `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`.
+/// one traversal: `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`. With `spread`,
+/// `f_r` is averaged over each cluster ([`LightCut::spread_average`]).
 pub fn shade(
     light: &LightCut,
     vertices: [CutRef<'_>; 3],
     bary: [f32; 3],
+    spread: bool,
     mut brdf: impl FnMut(Vec3) -> Vec3,
 ) -> Vec3 {
     let keys = [
@@ -167,7 +169,12 @@ pub fn shade(
             + bary[2] * dequantise(vertices[2].value[pos[3]]);
         if v > 0.0 {
             let l = light.value[pos[0]] * node.leaves() as f32;
-            sum += l * v * brdf(light.direction(node.index));
+            let f = if spread {
+                light.spread_average(node.index, &mut brdf)
+            } else {
+                brdf(light.direction(node.index))
+            };
+            sum += l * v * f;
         }
     });
     sum

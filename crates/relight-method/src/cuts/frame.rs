@@ -31,6 +31,11 @@ pub struct CutsFrameSettings {
     /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one.
     #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = crate::parse_material))]
     pub material: Option<Material>,
+    /// Average each glossy BRDF over the spread of every merged cluster's lights (five
+    /// evaluations per wide cluster) instead of evaluating it at the cluster's direction
+    /// alone: slower, and closer to the reference at large light cuts (docs/RESULTS.md §11).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub cluster_spread: bool,
 }
 
 impl Default for CutsFrameSettings {
@@ -40,6 +45,7 @@ impl Default for CutsFrameSettings {
             light_cut: 256,
             light_sigma: DEFAULT_LIGHT_SIGMA,
             material: None,
+            cluster_spread: false,
         }
     }
 }
@@ -80,7 +86,8 @@ impl<'a> CutsFrame<'a> {
                 materials,
                 &baked.bake,
                 baked.settings.function,
-            ),
+            )
+            .with_cluster_spread(s.cluster_spread),
             settings: *s,
             lighting: None,
         })
