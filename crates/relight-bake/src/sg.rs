@@ -157,6 +157,24 @@ pub enum LobeOrder {
     Nested,
 }
 
+/// The shape each (vertex, view)'s lobes are given after the least-squares fit (issue 10;
+/// the measurements are in docs/RESULTS.md §8).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum LobeShape {
+    /// The least-squares lobes (eq. 3.1), amplitudes rescaled to the data's integral
+    /// ([`SgFitSettings::energy`]): every bake before this setting existed.
+    #[default]
+    LeastSquares,
+    /// The least-squares lobes moved to the moments of their share of the data
+    /// ([`relight_sphere::sg_fit::match_moments`]: one M-step of EM): each lobe keeps its
+    /// share's integral and mean direction, so the mixture's SH bands 0 and 1 are the
+    /// data's for every lobe count; a GGX lobe's tails widen its Gaussian instead of
+    /// brightening its core.
+    Moments,
+}
+
 /// Where the flood fill starts the fit of a (vertex, view) in its first sweep (issue 10).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -213,6 +231,11 @@ pub struct SgFitSettings {
     #[serde(default)]
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_order))]
     pub lobe_order: LobeOrder,
+    /// The lobes' shape after the fit ([`LobeShape`]). Bundles written before this setting
+    /// existed were fitted [`LobeShape::LeastSquares`].
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_shape))]
+    pub lobe_shape: LobeShape,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]
     pub regions: usize,

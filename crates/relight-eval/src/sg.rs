@@ -69,15 +69,18 @@ pub const PLASTIC: Material = Material::GgxPlastic {
 };
 
 /// The example scenes [`default_experiments`] reads.
-pub const DEFAULT_SCENES: [&str; 3] = [
+pub const DEFAULT_SCENES: [&str; 4] = [
     "sg_spot.json",
     "sg_shadowed_highlight.json",
     "sg_teapot_dawn.json",
+    "sg_conductor_stpeters.json",
 ];
 
-/// Fig. 3-4 (conductor and plastic on Spot), Fig. 3-5 (the shadowed highlight) and a glossy
+/// Fig. 3-4 (conductor and plastic on Spot), Fig. 3-5 (the shadowed highlight), a glossy
 /// GGX conductor (alpha 0.2) teapot under an outdoor probe (Poly Haven's Kiara 1 Dawn,
-/// direct lighting; issue 10's case), from the example scenes in `examples` (the
+/// direct lighting; issue 10's case) and a GGX conductor (alpha 0.15) sphere on a Lambert
+/// floor under St Peter's (direct lighting; the scene on which issue 10's defaults were
+/// checked after being chosen on the others), from the example scenes in `examples` (the
 /// repository's `examples/` folder).
 pub fn default_experiments(examples: &Path) -> Vec<Experiment> {
     let ex = |name: &str, file: &str, material, indirect, baseline| Experiment {
@@ -106,6 +109,13 @@ pub fn default_experiments(examples: &Path) -> Vec<Experiment> {
         ex(
             "teapot_dawn_conductor",
             "sg_teapot_dawn.json",
+            None,
+            false,
+            false,
+        ),
+        ex(
+            "stpeters_conductor",
+            "sg_conductor_stpeters.json",
             None,
             false,
             false,

@@ -75,6 +75,8 @@
 #![allow(clippy::needless_range_loop)]
 
 mod lm;
+mod moments;
+pub use moments::match_moments;
 
 use crate::envmap::EnvMap;
 use crate::sg::SgLobe;

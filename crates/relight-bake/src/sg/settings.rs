@@ -33,6 +33,7 @@ impl Default for SgFitSettings {
             energy_weight: 0.0,
             fit_start: super::FitStart::default(),
             lobe_order: super::LobeOrder::default(),
+            lobe_shape: super::LobeShape::default(),
             regions: 0,
             energy: true,
         }

@@ -147,3 +147,26 @@ fn more_direct_lobes_are_never_worse() {
         );
     }
 }
+
+/// The same check with the lobes moved to their moments after the fit
+/// (`--lobe-shape moments`, issue 10).
+#[test]
+fn more_moment_shaped_lobes_are_never_worse() {
+    let fit = bake_sg::SgFitSettings {
+        lobe_shape: bake_sg::LobeShape::Moments,
+        ..Default::default()
+    };
+    let (errors, noise) = errors_by_lobes(fit, ShadeOptions::default());
+    eprintln!("moments: relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
+    for k in 0..2 {
+        // As above: a difference within one reference noise is not a measurable loss.
+        assert!(
+            errors[k + 1] <= errors[k] + noise,
+            "{} lobes: {} > {} lobes: {} + noise {noise}",
+            k + 2,
+            errors[k + 1],
+            k + 1,
+            errors[k]
+        );
+    }
+}

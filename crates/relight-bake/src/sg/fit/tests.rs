@@ -84,6 +84,7 @@ fn config(lobes: usize) -> FitConfig {
             energy_weight: 0.0,
             fit_start: FitStart::Neighbour,
             lobe_order: LobeOrder::Joint,
+            lobe_shape: Default::default(),
             regions: 0,
             // The recovery tests check the least-squares fit itself.
             energy: false,

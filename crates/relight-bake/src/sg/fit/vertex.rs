@@ -10,7 +10,7 @@ use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::{unit_integral, SgLobe};
 use relight_sphere::sg_fit::{self, Arrangement, EnergyTarget, FitOptions, PriorWeights};
 
-use crate::sg::{FitStart, LobeOrder};
+use crate::sg::{FitStart, LobeOrder, LobeShape};
 
 /// A warm start whose fit leaves more than this relative L2 error is checked against a greedy
 /// fit from scratch (the warm start may sit in another basin, e.g. across a shadow boundary).
@@ -314,10 +314,7 @@ fn fit_view(
         solve_view(c, n, t, warm, prior, spatial, first)
     };
     if t.norm2 > 0.0 {
-        preserve_energy(&mut lobes, t, c.opts.lambda_max);
-        if c.settings.energy {
-            conserve_energy(&mut lobes, t);
-        }
+        shape(c, &mut lobes, t);
     }
     (lobes, err, it)
 }
@@ -519,11 +516,24 @@ pub fn fit_alone(c: &ComponentFit, data: &[Vec3]) -> (Vec<SgLobe>, f64) {
     };
     let f = sg_fit::fit(&t.target, c.lobes, &opts, None);
     let mut lobes = f.lobes;
-    preserve_energy(&mut lobes, &t, c.opts.lambda_max);
-    if c.settings.energy {
-        conserve_energy(&mut lobes, &t);
-    }
+    shape(c, &mut lobes, &t);
     (lobes, f.relative_error)
+}
+
+/// The lobes' final shape ([`LobeShape`]): the least-squares lobes with their energy
+/// restored, or moved to the moments of their share of the data.
+fn shape(c: &ComponentFit, lobes: &mut Vec<SgLobe>, t: &ViewTarget) {
+    match c.settings.lobe_shape {
+        LobeShape::LeastSquares => {
+            preserve_energy(lobes, t, c.opts.lambda_max);
+            if c.settings.energy {
+                conserve_energy(lobes, t);
+            }
+        }
+        LobeShape::Moments => {
+            *lobes = sg_fit::match_moments(&t.target, lobes, c.opts.lambda_min, c.opts.lambda_max);
+        }
+    }
 }
 
 /// Rescale the amplitudes, per channel, so that the mixture's integral over the sphere equals
