@@ -6,11 +6,12 @@
 //! to the same samples of a Lambert point's slice (16,384 paths, one bounce):
 //! * one vMF lobe per class (eq. 13-15, what the bake stores);
 //! * the nested EM with 2, 3, 4 lobes per class (the paper's future work);
-//! * an SH transfer vector of order 3 to 8 (`t_lm = sum_i w_i Y_lm(s_i)`, the Monte Carlo
+//! * an SH transfer vector of order 3 to 9 (`t_lm = sum_i w_i Y_lm(s_i)`, the Monte Carlo
 //!   projection of the same weighted samples; SKS02's shadowed + interreflected transfer).
+//!
 //! Each is rendered against `ambient + sun` (a vMF light of kappa 1000, about 2.6 degrees
-//! wide, at 30 degrees elevation, the failure case of RESULTS §12 (continued)) and compared
-//! with the samples' own estimate `sum_i w_i L(s_i)`, which has no representation error.
+//! wide, at 10 to 60 degrees elevation: the failure case of RESULTS §12 (continued)) and
+//! compared with the truth: the estimate `sum_i w_i L(s_i)` of 2^18 paths of another seed.
 
 use super::*;
 use relight_scene::accel::build_default;
