@@ -638,6 +638,19 @@ fn run_case(
     Ok(())
 }
 
+/// A number with two decimals, `-` when it is not one (`sg` has no vMF transfer).
+struct Num(f64);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.is_finite() {
+            write!(f, "{:.2}", self.0)
+        } else {
+            f.write_str("-")
+        }
+    }
+}
+
 /// The results as markdown: one table per comparison.
 fn table(rows: &[Row], e: &VmfEval) -> String {
     let s = &e.settings;
@@ -684,7 +697,7 @@ fn table(rows: &[Row], e: &VmfEval) -> String {
         for r in sel {
             let _ = writeln!(
                 md,
-                "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.0} | {:.0} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {:.1} | {} | {:.2} | {:.0} | {:.0} | {} | {} | {} |",
                 r.case,
                 r.variant,
                 r.initial_vertices,
@@ -695,7 +708,7 @@ fn table(rows: &[Row], e: &VmfEval) -> String {
                     "-".into()
                 },
                 r.bake_seconds,
-                r.transfer_mib_f16,
+                Num(r.transfer_mib_f16),
                 r.bundle_mib_f16,
                 r.frame_ms,
                 r.frame_512_ms,
