@@ -32,6 +32,7 @@
 //! spatial refinement).
 
 pub mod bake;
+pub mod diffuse_sh;
 pub mod interp;
 pub mod material_lobes;
 pub mod refine;

@@ -7,7 +7,7 @@ use clap::ArgMatches;
 use relight_bake::cuts::CutsBakeSettings;
 use relight_bake::sg::SgBakeSettings;
 use relight_eval::reference::example_scenes;
-use relight_eval::{cuts, hybrid, sg, sg_basis, sh};
+use relight_eval::{cuts, hybrid, sg, sg_basis, sh, vmf};
 use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgSettings;
 use std::path::PathBuf;
@@ -26,6 +26,8 @@ pub enum EvalMethod {
     /// Cheslack-Postava 2008 Fig. 9 and 10 (cuts against Mitsuba; materials edited after
     /// the bake).
     Cuts,
+    /// Laurijssen & Dutré 2009 Tables 1-2, uniform refinement, path tracer, Mitsuba and sg.
+    Vmf,
 }
 
 /// Arguments of `relight eval`.
@@ -101,6 +103,9 @@ pub struct Args {
     /// data-driven tree in turn).
     #[command(flatten)]
     pub cuts: CutsBakeSettings,
+    /// vMF evaluation options (with `relight bake --method vmf`'s).
+    #[command(flatten)]
+    pub vmf: vmf::VmfEvalArgs,
 }
 
 /// Print the tables the experiment wrote: markdown, or one JSON object with its rows.
@@ -162,8 +167,9 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[Sg], named(&["budget", "experiments"])),
             (&[Cuts], arg_names::<CutsBakeSettings>()),
             (&[Cuts], named(&["light_cuts", "scene_materials_only"])),
+            (&[Vmf], arg_names::<vmf::VmfEvalArgs>()),
             (
-                &[Sh, Hybrid, Sg, Cuts],
+                &[Sh, Hybrid, Sg, Cuts, Vmf],
                 named(&["width", "spp", "examples"]),
             ),
         ],
@@ -258,6 +264,11 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 width: a.width,
                 out: a.out.clone(),
             })?;
+        }
+        Vmf => {
+            let given = |id: &str| args::given(m, id);
+            let common = (a.scenes.as_slice(), a.examples.as_path(), a.spp, a.width);
+            vmf::run(&vmf::VmfEval::from_args(&a.vmf, given, common, &a.out)?)?;
         }
     }
     print(&a, out)

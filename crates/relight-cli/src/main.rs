@@ -108,7 +108,7 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
-    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, gpu (a build with
+    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, vmf-fit, gpu (a build with
     /// `--features gpu`: GPU frames at 1280 x 720 against the CPU frames).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,

@@ -29,7 +29,9 @@
 //!     variants.
 //! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512) split into G-buffer,
 //!     per-triangle merge and shading, against the per-fragment merge in the same run.
-//! 12. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
+//! 12. [`vmf_fit`]: the vMF material fit, EM (what the bake runs) against Levenberg-Marquardt
+//!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
+//! 13. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
 //!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
@@ -50,6 +52,7 @@ pub mod sg_fit;
 pub mod sg_frame;
 pub mod sh_bake;
 pub mod shard;
+pub mod vmf_fit;
 
 use crate::{EvalError, Result};
 use relight_scene::mesh::TriMesh;
@@ -218,7 +221,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 13] = [
+pub const SECTIONS: [&str; 14] = [
     "rays",
     "sh-bake",
     "shard",
@@ -231,6 +234,7 @@ pub const SECTIONS: [&str; 13] = [
     "sg-frame",
     "cuts-bake",
     "cuts-frame",
+    "vmf-fit",
     "gpu",
 ];
 
@@ -315,6 +319,9 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     }
     if on("cuts-frame") {
         push(cuts_frame::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
+    if on("vmf-fit") {
+        push(vmf_fit::section(a.quick));
     }
     if on("gpu") {
         #[cfg(feature = "gpu")]

@@ -22,6 +22,7 @@ pub mod reference;
 pub mod sg;
 pub mod sg_basis;
 pub mod sh;
+pub mod vmf;
 
 pub use error::{EvalError, Result};
 

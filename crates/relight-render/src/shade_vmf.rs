@@ -26,10 +26,14 @@
 //!    in the vertex's local frame (`Frame::from_normal` of its normal, as the bake) is
 //!    located among the vertex's views ([`ViewTable`]: its own icosahedral level) and the
 //!    slices of the three views are blended by eq. 6 ([`relight_bake::vmf::blend_slices`]);
-//!    axes are rotated into the map frame (`Environment::env_from_world`).
+//!    axes are rotated into the map frame (`Environment::env_from_world`). A vertex with a
+//!    diffuse SH transfer (`relight_bake::vmf::diffuse_sh`) gets its diffuse term's radiance
+//!    `sum_k t_k L_k` here (the lighting's world-frame SH, [`SgLighting::world_sh`]) and its
+//!    three diffuse-term lobes are dropped (amplitude zero).
 //! 2. **Per pixel** (deferred shading): the three vertices' blended lobes are blended again by
 //!    eq. 6 with the fragment's barycentrics ("interpolated during rasterization", section
-//!    6.2) and each lobe is one fetch: `L_o = scale sum_j alpha_j P_{kappa_j}(mu_j)`.
+//!    6.2) and each lobe is one fetch: `L_o = scale sum_j alpha_j P_{kappa_j}(mu_j)`, plus
+//!    the vertices' diffuse SH radiance interpolated with the same barycentrics.
 
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use crate::shade_sg::{ChainOptions, SgLighting};
@@ -58,13 +62,13 @@ pub fn vmf_chain(face_size: usize) -> ChainOptions {
 }
 
 /// The lighting of a vMF frame: `env` prefiltered into [`vmf_chain`] (`face_size` capped at
-/// the map's own resolution, `shade_sg::source_face_size`). The SH part of [`SgLighting`]
-/// is unused (order 1).
+/// the map's own resolution, `shade_sg::source_face_size`) and projected to SH of the bake's
+/// diffuse order (`sh_order`, at least 1; [`SgLighting::world_sh`]).
 ///
 /// # Panics
 /// If `face_size` is not a power of two.
-pub fn vmf_lighting(env: &Environment, face_size: usize) -> SgLighting {
-    SgLighting::with_chain(env, 1, &vmf_chain(face_size))
+pub fn vmf_lighting(env: &Environment, face_size: usize, sh_order: usize) -> SgLighting {
+    SgLighting::with_chain(env, sh_order.max(1), &vmf_chain(face_size))
 }
 
 /// The largest `kappa` the chain of `lighting` resolves (its sharpest level's).
@@ -84,6 +88,8 @@ pub fn integrate(lighting: &SgLighting, lobe_in_map: &VmfLobe) -> Vec3 {
 pub struct VmfFrameLobes {
     /// `lobes[x * LOBES + k]`: view-blended lobes of vertex `x`, axes in the map frame.
     pub lobes: Vec<VmfLobe>,
+    /// Per vertex, the diffuse term's radiance from its SH transfer (zero without one).
+    pub diffuse: Vec<Vec3>,
 }
 
 /// Where the time of a frame goes, milliseconds.
@@ -148,26 +154,36 @@ impl<'a> VmfRenderer<'a> {
     /// `lighting`.
     pub fn prepare(&self, lighting: &SgLighting, eye: Vec3) -> VmfFrameLobes {
         let r = lighting.env_from_world;
-        let mut lobes =
-            vec![VmfLobe::new(Vec3::Z, 0.0, Vec3::ZERO); self.mesh.vertex_count() * LOBES];
+        let n = self.mesh.vertex_count();
+        let mut lobes = vec![VmfLobe::new(Vec3::Z, 0.0, Vec3::ZERO); n * LOBES];
+        let mut diffuse = vec![Vec3::ZERO; n];
+        let light_sh = lighting.world_sh();
         lobes
             .par_chunks_mut(LOBES * 256)
+            .zip(diffuse.par_chunks_mut(256))
             .enumerate()
-            .for_each(|(c, out)| {
-                for (i, o) in out.chunks_mut(LOBES).enumerate() {
+            .for_each(|(c, (out, dout))| {
+                for (i, (o, d)) in out.chunks_mut(LOBES).zip(dout).enumerate() {
                     let x = c * 256 + i;
                     let p = self.mesh.positions[x];
                     let v = (eye - p).try_normalize().unwrap_or(self.frames[x].n);
                     let s = self.view_slice(x, v);
-                    for (o, l) in o.iter_mut().zip(s.lobes.iter().flatten()) {
+                    let sh = self.bake.diffuse_sh_row(x);
+                    for (k, (o, l)) in o.iter_mut().zip(s.lobes.iter().flatten()).enumerate() {
                         *o = VmfLobe {
                             axis: r * l.axis,
                             ..*l
                         };
+                        if sh.is_some() && k < LOBES / 2 {
+                            o.amplitude = Vec3::ZERO; // the diffuse term: SH instead
+                        }
+                    }
+                    if let Some(t) = sh {
+                        *d = relight_bake::vmf::diffuse_sh::radiance(t, light_sh);
                     }
                 }
             });
-        VmfFrameLobes { lobes }
+        VmfFrameLobes { lobes, diffuse }
     }
 
     /// Radiance of a fragment: eq. 6 over its triangle's vertex lobes, one fetch per lobe.
@@ -179,16 +195,20 @@ impl<'a> VmfRenderer<'a> {
         integrate: impl Fn(&VmfLobe) -> Vec3,
     ) -> Vec3 {
         let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
-        (0..LOBES)
-            .map(|k| {
-                let l = blend_lobes(id.map(|x| &frame.lobes[x * LOBES + k]), f.bary);
-                if l.amplitude == Vec3::ZERO {
-                    Vec3::ZERO
-                } else {
-                    integrate(&l)
-                }
-            })
-            .sum()
+        let b = f.bary;
+        let diffuse =
+            frame.diffuse[id[0]] * b[0] + frame.diffuse[id[1]] * b[1] + frame.diffuse[id[2]] * b[2];
+        diffuse
+            + (0..LOBES)
+                .map(|k| {
+                    let l = blend_lobes(id.map(|x| &frame.lobes[x * LOBES + k]), f.bary);
+                    if l.amplitude == Vec3::ZERO {
+                        Vec3::ZERO
+                    } else {
+                        integrate(&l)
+                    }
+                })
+                .sum::<Vec3>()
     }
 
     /// One frame: [`VmfRenderer::prepare`], then deferred per-pixel shading with prefiltered

@@ -99,6 +99,12 @@ pub struct VmfBakeSettings {
     /// Samples per term for fitting the eq. 9 lobes of a vertex's material.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().material_samples))]
     pub material_samples: u32,
+    /// SH order of the diffuse term's transfer, `0..=10` (0: the diffuse term as vMF lobes,
+    /// as the paper; `n`: `n^2` RGB coefficients per vertex, `super::diffuse_sh`). Default
+    /// 5, chosen by measurement (docs/RESULTS.md §12 (evaluation)).
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().diffuse_sh_order))]
+    pub diffuse_sh_order: u32,
     /// Largest concentration of a slice lobe (finite, `>= 1`).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().kappa_max))]
     pub kappa_max: f32,
@@ -143,6 +149,7 @@ impl Default for VmfBakeSettings {
             spatial_threshold: 0.0,
             spatial_min_area: default_spatial_min_area(),
             spatial_batch: default_spatial_batch(),
+            diffuse_sh_order: 5,
             paths: s.paths,
             max_bounces: s.max_bounces,
             material_samples: s.material_samples,
@@ -198,6 +205,13 @@ impl VmfBakeSettings {
             return Err(BakeError::Settings(
                 "spatial_batch must be at least 1".into(),
             ));
+        }
+        if self.diffuse_sh_order > super::diffuse_sh::MAX_DIFFUSE_SH_ORDER {
+            return Err(BakeError::Settings(format!(
+                "diffuse_sh_order {} is not in 0..={}",
+                self.diffuse_sh_order,
+                super::diffuse_sh::MAX_DIFFUSE_SH_ORDER
+            )));
         }
         if self.angular_threshold > 0.0 && self.min_view_level > self.view_level {
             return Err(BakeError::Settings(format!(
@@ -264,6 +278,9 @@ pub struct VmfBake {
     pub offsets: Vec<usize>,
     /// The slices, vertex after vertex.
     pub slices: Vec<TransferSlice>,
+    /// The diffuse term's SH transfer, `order^2` RGB coefficients per vertex
+    /// (`settings.diffuse_sh_order`; empty when 0): [`super::diffuse_sh`].
+    pub diffuse_sh: Vec<Vec3>,
 }
 
 /// An invariant of a [`VmfBake`] that does not hold ([`VmfBake::validate`]).
@@ -303,6 +320,7 @@ impl VmfBake {
         self.offsets
             .extend(other.offsets.iter().skip(1).map(|&o| o + base));
         self.slices.extend(other.slices);
+        self.diffuse_sh.extend(other.diffuse_sh);
     }
 
     /// Check every invariant: valid settings, one level per vertex within the settings'
@@ -345,6 +363,17 @@ impl VmfBake {
                     counts[l as usize]
                 ));
             }
+        }
+        let sh = self.diffuse_sh_len() * usize::from(self.settings.diffuse_sh_order > 0);
+        if self.diffuse_sh.len() != sh * self.levels.len() {
+            return err(format!(
+                "{} diffuse SH coefficients for {} vertices of {sh}",
+                self.diffuse_sh.len(),
+                self.levels.len()
+            ));
+        }
+        if let Some(c) = self.diffuse_sh.iter().find(|c| !c.is_finite()) {
+            return err(format!("diffuse SH coefficient {c}"));
         }
         for (i, s) in self.slices.iter().enumerate() {
             for t in Term::ALL {
@@ -423,7 +452,7 @@ pub fn bake_vertices(
     let ng = vertex_geometric_normals(mesh);
     let baker = PointBaker::new(mesh, caster, &per_vertex, settings);
     let progress = progress_bar(settings.progress, vertices.len() as u64, "vmf bake");
-    let rows: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
+    let rows: Vec<VertexRow> = with_threads(settings.threads, || {
         vertices
             .into_par_iter()
             .map(|x| {
@@ -481,25 +510,30 @@ pub(crate) fn checked_vertex_materials(
 
 impl VmfBake {
     /// A bake of `settings` from per-vertex rows (level, slices).
-    pub(crate) fn from_rows(
-        settings: VmfBakeSettings,
-        rows: Vec<(u8, Vec<TransferSlice>)>,
-    ) -> Self {
-        let levels = rows.iter().map(|(l, _)| *l).collect();
+    pub(crate) fn from_rows(settings: VmfBakeSettings, rows: Vec<VertexRow>) -> Self {
+        let levels = rows.iter().map(|(l, _, _)| *l).collect();
         let offsets = std::iter::once(0)
-            .chain(rows.iter().scan(0, |o, (_, s)| {
+            .chain(rows.iter().scan(0, |o, (_, s, _)| {
                 *o += s.len();
                 Some(*o)
             }))
+            .collect();
+        let diffuse_sh = rows
+            .iter()
+            .flat_map(|(_, _, t)| t.iter().copied())
             .collect();
         VmfBake {
             settings,
             levels,
             offsets,
-            slices: rows.into_iter().flat_map(|(_, s)| s).collect(),
+            slices: rows.into_iter().flat_map(|(_, s, _)| s).collect(),
+            diffuse_sh,
         }
     }
 }
+
+/// What a vertex bakes to: its view level, its slices, its diffuse SH row (empty when off).
+pub(crate) type VertexRow = (u8, Vec<TransferSlice>, Vec<Vec3>);
 
 /// What baking one point needs, shared by all points of a bake: the scene, the view tables,
 /// the eq. 9 lobes fitted once per (material, level, view), and the refinement counts shown
@@ -552,7 +586,7 @@ impl<'a> PointBaker<'a> {
 
     /// The level and slices of vertex `x` (its index seeds its streams) at `point`, whose
     /// material must be one of the baker's.
-    pub(crate) fn bake_point(&self, x: usize, point: &SurfacePoint) -> (u8, Vec<TransferSlice>) {
+    pub(crate) fn bake_point(&self, x: usize, point: &SurfacePoint) -> VertexRow {
         let settings = &self.settings;
         let (lo, hi) = settings.level_range();
         let slice_settings = settings.slice_settings();
@@ -561,6 +595,18 @@ impl<'a> PointBaker<'a> {
             .iter()
             .position(|p| *p == point.material)
             .expect("a material of the bake");
+        // The diffuse SH transfer: the mean projection over every slice computed.
+        let order = settings.diffuse_sh_order as usize;
+        let sh_on = order > 0 && super::diffuse_sh::view_independent_diffuse(&point.material);
+        let mut sh = vec![
+            Vec3::ZERO;
+            if order > 0 {
+                relight_sphere::sh::sh_count(order)
+            } else {
+                0
+            }
+        ];
+        let mut computed = 0u32;
         let r = self.refiner.refine(
             lo,
             hi,
@@ -574,7 +620,7 @@ impl<'a> PointBaker<'a> {
                     MaterialLobes::fit(&point.material, view.normalize(), settings.material_samples)
                 });
                 let lobes = (view.z > 0.0).then_some(lobes);
-                trace_slice_with(
+                let samples = trace_slice_with(
                     &self.scene,
                     point,
                     view,
@@ -582,14 +628,20 @@ impl<'a> PointBaker<'a> {
                     &slice_settings,
                     settings.seed,
                     stream,
-                )
-                .estimate(KappaEstimate::Banerjee, settings.kappa_max)
+                );
+                if sh_on {
+                    super::diffuse_sh::accumulate(&samples, order, &mut sh);
+                    computed += 1;
+                }
+                samples.estimate(KappaEstimate::Banerjee, settings.kappa_max)
             },
             |level| {
                 self.refined[level as usize].fetch_add(1, Ordering::Relaxed);
             },
         );
-        (r.level as u8, r.slices)
+        let inv = 1.0 / computed.max(1) as f32;
+        sh.iter_mut().for_each(|c| *c *= inv);
+        (r.level as u8, r.slices, sh)
     }
 
     /// Show the refinement counts so far in `progress`'s message.

@@ -420,3 +420,6 @@ pub fn transfer_slice(
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod diffuse_tests;

@@ -118,7 +118,7 @@ pub fn bake_refined(
     let mut ng = vertex_geometric_normals(mesh);
     let mut mats = per_vertex.clone();
     let baker = PointBaker::new(mesh, caster, &per_vertex, settings);
-    let mut rows: Vec<(u8, Vec<TransferSlice>)> = vec![];
+    let mut rows: Vec<super::bake::VertexRow> = vec![];
     let mut local: Vec<Vec<TransferSlice>> = vec![];
     let mut stats = SpatialStats {
         input_vertices: mesh.vertex_count(),
@@ -159,7 +159,7 @@ pub fn bake_refined(
                 }
             })
             .collect();
-        let baked: Vec<(u8, Vec<TransferSlice>)> = with_threads(settings.threads, || {
+        let baked: Vec<super::bake::VertexRow> = with_threads(settings.threads, || {
             new.clone()
                 .into_par_iter()
                 .zip(points.par_iter())
@@ -171,10 +171,10 @@ pub fn bake_refined(
                 .collect()
         })?;
         progress.finish_and_clear();
-        for (x, (l, s)) in new.zip(baked) {
+        for (x, (l, s, sh)) in new.zip(baked) {
             let frame = Frame::from_normal(am.normals[x]);
             local.push(s.iter().map(|s| local_slice(s, &frame)).collect());
-            rows.push((l, s));
+            rows.push((l, s, sh));
         }
         // Errors of the live triangles; the ones to split.
         let mut cands: Vec<(f32, usize)> = vec![];

@@ -76,7 +76,8 @@ impl Frame for VmfFrame<'_> {
 
     fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError> {
         let t0 = Instant::now();
-        let lighting = vmf_lighting(env, self.prefilter_size);
+        let order = self.baked.settings.diffuse_sh_order as usize;
+        let lighting = vmf_lighting(env, self.prefilter_size, order);
         self.lighting = Some((lighting, env.clone()));
         Ok(PrepareTimes {
             environment_ms: ms_since(t0),

@@ -7,7 +7,10 @@
 //! * `vmf_lobes [S, 6, 7]` (F32, or F16 with `f16`): per slice, its lobes in the order
 //!   (diffuse term at the point, glossy term) x (direct, indirect diffuse, indirect glossy),
 //!   each as axis x, y, z (world frame, towards the light), `kappa`, amplitude r, g, b (the
-//!   lobe's integral, eq. 4-5 and 15).
+//!   lobe's integral, eq. 4-5 and 15);
+//! * `vmf_diffuse_sh [V, n^2, 3]` (F32, or F16), only when the settings'
+//!   `diffuse_sh_order` `n` is above 0: per vertex, the diffuse term's SH transfer
+//!   (`relight_bake::vmf::diffuse_sh`; an all-zero row: the vertex keeps its diffuse lobes).
 //!
 //! Version and checksums are the bundle layer's (`relight_bundle`). An f16 bundle rounds every
 //! value: the reader renormalises axes within 1 % of unit length and brings a `kappa` within
@@ -56,6 +59,19 @@ pub fn store(b: &VmfBaked) -> Result<Bundle, MethodError> {
             b.record.f16,
         ),
     );
+    let n = b.bake.diffuse_sh_len();
+    if b.settings.diffuse_sh_order > 0 {
+        let flat: Vec<f32> = b
+            .bake
+            .diffuse_sh
+            .iter()
+            .flat_map(|c| c.to_array())
+            .collect();
+        out.insert(
+            "vmf_diffuse_sh",
+            float_tensor(vec![levels.len(), n, 3], &flat, b.record.f16),
+        );
+    }
     Ok(out)
 }
 
@@ -123,6 +139,15 @@ pub fn load(b: &Bundle, path: &Path) -> Result<VmfBaked, MethodError> {
             }
         })
         .collect();
+    let diffuse_sh = if settings.diffuse_sh_order > 0 {
+        let n = relight_sphere::sh::sh_count(settings.diffuse_sh_order as usize);
+        r.f32s("vmf_diffuse_sh", &[v, n, 3])?
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect()
+    } else {
+        vec![]
+    };
     let baked = VmfBaked {
         scene,
         bake: VmfBake {
@@ -130,6 +155,7 @@ pub fn load(b: &Bundle, path: &Path) -> Result<VmfBaked, MethodError> {
             levels,
             offsets,
             slices,
+            diffuse_sh,
         },
         settings,
         record,

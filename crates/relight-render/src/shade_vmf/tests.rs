@@ -18,7 +18,7 @@ fn smooth_env(d: Vec3) -> Vec3 {
 #[test]
 fn kappa_beyond_the_chain_is_clamped_with_its_energy_kept() {
     let env = Environment::new(EnvMap::latlong_from_fn(128, 64, smooth_env));
-    let lighting = vmf_lighting(&env, 32);
+    let lighting = vmf_lighting(&env, 32, 1);
     let top = kappa_resolved(&lighting);
     // 32-texel finest face: kappa = 32^2 / 4, and each level doubles kappa.
     assert_eq!(top, 256.0);
@@ -39,7 +39,7 @@ fn kappa_beyond_the_chain_is_clamped_with_its_energy_kept() {
     let l = Vec3::new(0.5, 1.0, 2.0);
     let mut c = Environment::new(EnvMap::constant(l));
     c.scale = 1.5;
-    let lc = vmf_lighting(&c, 32);
+    let lc = vmf_lighting(&c, 32, 1);
     for k in [0.0, 0.1, 3.0, 100.0, top, 1e4, 1e8] {
         let got = integrate(&lc, &VmfLobe::new(axis, k, amp));
         let want = amp * l * 1.5;
@@ -96,7 +96,7 @@ fn glossy_scene_matches_the_path_tracer() {
     )
     .expect("bake");
     let r = VmfRenderer::new(&scene.mesh, &b);
-    let lighting = vmf_lighting(&scene.env, 64);
+    let lighting = vmf_lighting(&scene.env, 64, settings.diffuse_sh_order as usize);
     let opts = RasterOptions { supersample: 2 };
     let (img, _) = r.render(&lighting, &scene.camera, None, &opts);
     let reference = r.render_reference(&lighting, &scene.env, &scene.camera, &opts);
@@ -161,6 +161,7 @@ fn mixed_view_levels_render_and_baked_views_are_exact() {
         view_level: 3,
         min_view_level: 0,
         angular_threshold: 0.1,
+        diffuse_sh_order: 0,
         ..Default::default()
     };
     let amp = [0.1, 0.2, 0.05, 0.3, 0.15, 0.2].map(Vec3::splat);
@@ -185,6 +186,7 @@ fn mixed_view_levels_render_and_baked_views_are_exact() {
         levels,
         offsets,
         slices,
+        diffuse_sh: vec![],
     };
     bake.validate().expect("valid");
     let r = VmfRenderer::new(&mesh, &bake);
@@ -204,7 +206,7 @@ fn mixed_view_levels_render_and_baked_views_are_exact() {
     }
     let l = Vec3::new(0.5, 1.0, 2.0);
     let env = Environment::new(EnvMap::constant(l));
-    let lighting = vmf_lighting(&env, 32);
+    let lighting = vmf_lighting(&env, 32, 1);
     let camera = Camera::look_at([0.3, 0.5, 3.2], [0.0, 0.0, 0.0], 40.0, 16, 16);
     let (img, _) = r.render(&lighting, &camera, None, &RasterOptions { supersample: 2 });
     let want: Vec3 = amp.iter().sum::<Vec3>() * l;
