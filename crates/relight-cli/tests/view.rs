@@ -36,7 +36,14 @@ fn bundle(dir: &Path) -> PathBuf {
     .unwrap();
     let b = dir.join("b.relight");
     let o = relight(&[
-        "bake", s(&scene), "-o", s(&b), "--samples", "32", "--sh-order", "3",
+        "bake",
+        s(&scene),
+        "-o",
+        s(&b),
+        "--samples",
+        "32",
+        "--sh-order",
+        "3",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     b
@@ -64,7 +71,14 @@ fn xvfb() -> Option<Xvfb> {
             continue;
         }
         let child = Command::new("Xvfb")
-            .args([&format!(":{n}"), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+            .args([
+                &format!(":{n}"),
+                "-screen",
+                "0",
+                "1280x1024x24",
+                "-nolisten",
+                "tcp",
+            ])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn();
@@ -169,16 +183,25 @@ fn the_viewer_runs_a_script_and_its_screenshots_show_the_object_and_the_changes(
          screenshot d.exr\n\
          split heatmap\n\
          wait-reference 8\n\
-         screenshot-window window.png\n\
          print-state\n\
+         screenshot-window window.png\n\
          quit\n",
     )
     .unwrap();
-    let o = view(&x, &dir, &[s(&b), "--script", s(&script), "--size", "640x420"]);
+    let o = view(
+        &x,
+        &dir,
+        &[s(&b), "--script", s(&script), "--size", "640x420"],
+    );
     if no_vulkan(&o) {
         return;
     }
-    assert!(o.status.success(), "stdout {}\nstderr {}", stdout(&o), stderr(&o));
+    assert!(
+        o.status.success(),
+        "stdout {}\nstderr {}",
+        stdout(&o),
+        stderr(&o)
+    );
     assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
     let (a, b2, c, d) = (
         read(&dir.join("a.exr")),
@@ -186,13 +209,22 @@ fn the_viewer_runs_a_script_and_its_screenshots_show_the_object_and_the_changes(
         read(&dir.join("c.exr")),
         read(&dir.join("d.exr")),
     );
-    assert!(a.width >= 200 && a.height >= 200, "{}x{}", a.width, a.height);
+    assert!(
+        a.width >= 200 && a.height >= 200,
+        "{}x{}",
+        a.width,
+        a.height
+    );
     // The sphere is at the centre of the bundle's view, lit by the sky; the corners above
     // the plane see nothing (no background): black. The centre is well above zero (a grey
     // Lambert sphere under a sky of a few kcd/m^2 has radiance of order 1).
     let centre = mean(&a, 0.4, 0.6, 0.35, 0.55);
     assert!(centre > 0.05, "centre luminance {centre}");
-    assert_eq!(mean(&a, 0.0, 0.05, 0.0, 0.05), 0.0, "top-left corner is not empty");
+    assert_eq!(
+        mean(&a, 0.0, 0.05, 0.0, 0.05),
+        0.0,
+        "top-left corner is not empty"
+    );
     // Rotating the sky by 90 degrees moves the sun from one side of the sphere to another:
     // the shading of the centre region changes by far more than rendering noise (none: the
     // GPU frame is deterministic) -- at least 2 % of its luminance on average per pixel.
@@ -204,9 +236,15 @@ fn the_viewer_runs_a_script_and_its_screenshots_show_the_object_and_the_changes(
             .sum::<f32>()
             / p.pixels.len() as f32
     };
-    assert!(diff(&a, &b2) > 0.02 * centre, "rotating the environment changed nothing");
+    assert!(
+        diff(&a, &b2) > 0.02 * centre,
+        "rotating the environment changed nothing"
+    );
     assert!(diff(&b2, &c) > 0.02 * centre, "orbiting changed nothing");
-    assert!(mean(&d, 0.4, 0.6, 0.35, 0.55) > 0.05, "the hybrid frame is empty");
+    assert!(
+        mean(&d, 0.4, 0.6, 0.35, 0.55) > 0.05,
+        "the hybrid frame is empty"
+    );
     assert!(png_size(&dir.join("a.png")) == (a.width as u32, a.height as u32));
     // The window: at least the size asked for, panels included.
     let (ww, wh) = png_size(&dir.join("window.png"));
@@ -235,7 +273,11 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
     let dir = tmpdir("view", "bad");
     let b = bundle(&dir);
     let script = dir.join("s.txt");
-    std::fs::write(&script, "wait-frames 3\nscreenshot-window w.png\nprint-state\nquit\n").unwrap();
+    std::fs::write(
+        &script,
+        "wait-frames 3\nscreenshot-window w.png\nprint-state\nquit\n",
+    )
+    .unwrap();
     // A script that does not parse: file and line, before any window or GPU.
     let bad = dir.join("bad.txt");
     std::fs::write(&bad, "wait-frames 1\n\norbit 30\n").unwrap();
@@ -246,7 +288,14 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
     let scene = dir.join("scene.json");
     let cuts = dir.join("cuts.relight");
     let o = relight(&[
-        "bake", s(&scene), "-o", s(&cuts), "--method", "cuts", "--cut-lights", "256",
+        "bake",
+        s(&scene),
+        "-o",
+        s(&cuts),
+        "--method",
+        "cuts",
+        "--cut-lights",
+        "256",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     // An environment with a NaN texel (written with the exr crate: relight refuses to).
@@ -273,7 +322,11 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
             return;
         }
         let (out, err) = (stdout(&o), stderr(&o));
-        assert_eq!(o.status.code(), Some(1), "{args:?}: stdout {out}\nstderr {err}");
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{args:?}: stdout {out}\nstderr {err}"
+        );
         assert!(!err.contains("panicked"), "{args:?}: {err}");
         let shown = out
             .lines()

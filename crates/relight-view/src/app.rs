@@ -355,7 +355,10 @@ impl<'a> App<'a> {
         };
         if self.dirty.env_map {
             self.dirty.env_map = false;
-            match self.env_source.build(Some(&baked.scene().desc), &self.bundle) {
+            match self
+                .env_source
+                .build(Some(&baked.scene().desc), &self.bundle)
+            {
                 Ok(e) => {
                     if self.env_source == EnvSource::Bundle {
                         (self.rotate_deg, self.env_scale) =
@@ -507,12 +510,28 @@ impl<'a> App<'a> {
         self.ref_shown = (s.generation, s.spp);
         self.ref_pass = s.last_pass;
         let tm = self.tonemap();
-        set_texture(ctx, &mut self.ref_texture, "reference", color_image(&img, &tm.to_srgb8(&img)));
+        set_texture(
+            ctx,
+            &mut self.ref_texture,
+            "reference",
+            color_image(&img, &tm.to_srgb8(&img)),
+        );
         self.comparison = self.output.as_ref().and_then(|o| {
-            reference::compare(&o.image, &o.coverage, self.ref_factor, &img, self.opts.background)
+            reference::compare(
+                &o.image,
+                &o.coverage,
+                self.ref_factor,
+                &img,
+                self.opts.background,
+            )
         });
         if let Some(c) = &self.comparison {
-            set_texture(ctx, &mut self.heat_texture, "heatmap", color_image(&img, &c.heatmap));
+            set_texture(
+                ctx,
+                &mut self.heat_texture,
+                "heatmap",
+                color_image(&img, &c.heatmap),
+            );
         }
         self.ref_image = Some(img);
     }
@@ -584,7 +603,10 @@ impl<'a> App<'a> {
         loop {
             self.screenshots += 1;
             let base = format!("relight-view-{}", self.screenshots);
-            let (png, exr) = (PathBuf::from(format!("{base}.png")), PathBuf::from(format!("{base}.exr")));
+            let (png, exr) = (
+                PathBuf::from(format!("{base}.png")),
+                PathBuf::from(format!("{base}.exr")),
+            );
             if png.exists() || exr.exists() {
                 continue;
             }
@@ -662,8 +684,14 @@ impl<'a> App<'a> {
         if let Some((path, rx, since)) = r.window_shot.take() {
             match rx.try_recv() {
                 Ok(img) => {
-                    let px: Vec<[u8; 3]> = img.pixels.iter().map(|c| [c.r(), c.g(), c.b()]).collect();
-                    if let Err(e) = relight_scene::io::image::write_png_srgb8(&path, img.width(), img.height(), &px) {
+                    let px: Vec<[u8; 3]> =
+                        img.pixels.iter().map(|c| [c.r(), c.g(), c.b()]).collect();
+                    if let Err(e) = relight_scene::io::image::write_png_srgb8(
+                        &path,
+                        img.width(),
+                        img.height(),
+                        &px,
+                    ) {
                         self.set_error(Slot::Screenshot, format!("script line {}: {e}", r.line));
                     }
                 }
@@ -673,7 +701,11 @@ impl<'a> App<'a> {
                 }
                 Err(_) => self.set_error(
                     Slot::Screenshot,
-                    format!("script line {}: the window screenshot {} never arrived", r.line, path.display()),
+                    format!(
+                        "script line {}: the window screenshot {} never arrived",
+                        r.line,
+                        path.display()
+                    ),
                 ),
             }
         }

@@ -53,7 +53,9 @@ mod tests {
     #[test]
     fn sizes_parse_or_say_what_is_expected() {
         assert_eq!(super::parse_size("640x400"), Ok((640, 400)));
-        assert!(super::parse_size("640").unwrap_err().contains("WIDTHxHEIGHT"));
+        assert!(super::parse_size("640")
+            .unwrap_err()
+            .contains("WIDTHxHEIGHT"));
         assert!(super::parse_size("ax3").is_err());
     }
 }

@@ -56,7 +56,10 @@ impl EnvSource {
         let mut env = match self {
             EnvSource::Bundle => {
                 let desc = desc.ok_or_else(|| {
-                    format!("{}: no bundle loaded, so no environment of its own", bundle.display())
+                    format!(
+                        "{}: no bundle loaded, so no environment of its own",
+                        bundle.display()
+                    )
                 })?;
                 relight_scene::scene_file::build_env(&desc.environment).map_err(|e| {
                     format!(
@@ -65,9 +68,9 @@ impl EnvSource {
                     )
                 })?
             }
-            EnvSource::File(p) => Environment::new(
-                relight_scene::io::load_env(p, None).map_err(|e| e.to_string())?,
-            ),
+            EnvSource::File(p) => {
+                Environment::new(relight_scene::io::load_env(p, None).map_err(|e| e.to_string())?)
+            }
             EnvSource::Sky {
                 elevation_deg,
                 azimuth_deg,
@@ -116,13 +119,18 @@ mod tests {
             .build(None, Path::new("b.relight"))
             .unwrap_err();
         assert!(e.contains("/nonexistent/e.exr"), "{e}");
-        let e = EnvSource::Bundle.build(None, Path::new("b.relight")).unwrap_err();
+        let e = EnvSource::Bundle
+            .build(None, Path::new("b.relight"))
+            .unwrap_err();
         assert!(e.contains("b.relight"), "{e}");
         let bad = EnvSource::Sky {
             elevation_deg: 30.0,
             azimuth_deg: 90.0,
             turbidity: 50.0,
         };
-        assert!(bad.build(None, Path::new("b")).unwrap_err().contains("turbidity"));
+        assert!(bad
+            .build(None, Path::new("b"))
+            .unwrap_err()
+            .contains("turbidity"));
     }
 }

@@ -78,7 +78,8 @@ pub fn orbit(camera: &Camera, dyaw_deg: f32, dpitch_deg: f32) -> Camera {
 pub fn pan(camera: &Camera, dx: f32, dy: f32) -> Camera {
     let f = camera.frame();
     let depth = (Vec3::from(camera.target) - f.origin).length();
-    let shift = f.right * (dx * 2.0 * f.tan_half_x * depth) + f.up * (dy * 2.0 * f.tan_half_y * depth);
+    let shift =
+        f.right * (dx * 2.0 * f.tan_half_x * depth) + f.up * (dy * 2.0 * f.tan_half_y * depth);
     Camera {
         origin: (f.origin + shift).into(),
         target: (Vec3::from(camera.target) + shift).into(),
@@ -105,11 +106,10 @@ pub fn frame_all(camera: &Camera, positions: &[Vec3]) -> Camera {
     if positions.is_empty() {
         return *camera;
     }
-    let (lo, hi) = positions
-        .iter()
-        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), &p| {
-            (lo.min(p), hi.max(p))
-        });
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
     let centre = 0.5 * (lo + hi);
     let radius = (0.5 * (hi - lo).length()).max(MIN_DISTANCE);
     let f = camera.frame();
@@ -154,7 +154,11 @@ mod tests {
         }
         assert!(close(o.origin, c.origin, 1e-4), "{o:?}");
         // Yaw 90 about +Y takes the eye's +Z offset to +X.
-        let q = orbit(&Camera::look_at([0.0, 0.0, 3.0], [0.0; 3], 40.0, 8, 8), 90.0, 0.0);
+        let q = orbit(
+            &Camera::look_at([0.0, 0.0, 3.0], [0.0; 3], 40.0, 8, 8),
+            90.0,
+            0.0,
+        );
         assert!(close(q.origin, [3.0, 0.0, 0.0], 1e-5), "{q:?}");
     }
 
@@ -198,7 +202,10 @@ mod tests {
         let fr = f.frame();
         for p in &pts {
             let (x, y, _) = fr.project(*p).expect("in front of the eye");
-            assert!((0.0..=64.0).contains(&x) && (0.0..=48.0).contains(&y), "{p} at {x},{y}");
+            assert!(
+                (0.0..=64.0).contains(&x) && (0.0..=48.0).contains(&y),
+                "{p} at {x},{y}"
+            );
         }
     }
 }

@@ -145,12 +145,7 @@ fn lock(m: &Mutex<Accumulated>) -> std::sync::MutexGuard<'_, Accumulated> {
 }
 
 /// The thread: build the ray caster, then accumulate passes of the latest job.
-fn run(
-    mut scene: Scene,
-    shared: &Shared,
-    rx: &Receiver<(u64, Job)>,
-    on_pass: &dyn Fn(),
-) {
+fn run(mut scene: Scene, shared: &Shared, rx: &Receiver<(u64, Job)>, on_pass: &dyn Fn()) {
     let caster = match build_caster(&scene) {
         Ok(c) => c,
         Err(e) => {
@@ -363,7 +358,10 @@ mod tests {
         let c = compare(&frame, &cov, 2, &off, false).unwrap();
         // a = (1, 1), b = (2, 1): rmse = sqrt(1/2), rms(b) = sqrt(5/2).
         assert!((c.metrics.rel_rmse - (1.0f64 / 5.0).sqrt()).abs() < 1e-6);
-        assert!(compare(&frame, &cov, 1, &reference, false).is_none(), "size mismatch");
+        assert!(
+            compare(&frame, &cov, 1, &reference, false).is_none(),
+            "size mismatch"
+        );
     }
 
     /// The thread path-traces a unit sphere under a constant white environment: a white

@@ -300,12 +300,12 @@ mod tests {
         )
         .unwrap();
         let a: Vec<&Action> = s.actions.iter().map(|(_, a)| a).collect();
-        assert_eq!(a.len(), 21);
+        assert_eq!(a.len(), 20);
         assert_eq!(s.actions[0].0, 3, "line numbers count comments and blanks");
         assert_eq!(a[1], &Action::Orbit(30.0, -10.0));
-        assert_eq!(a[10], &Action::Env(PathBuf::from("my env.exr")));
-        assert_eq!(a[14], &Action::Split(SplitMode::Heatmap));
-        assert_eq!(a[20], &Action::Quit);
+        assert_eq!(a[9], &Action::Env(PathBuf::from("my env.exr")));
+        assert_eq!(a[13], &Action::Split(SplitMode::Heatmap));
+        assert_eq!(a[19], &Action::Quit);
     }
 
     #[test]

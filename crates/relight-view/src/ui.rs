@@ -110,39 +110,42 @@ impl App<'_> {
         }
     }
 
+    /// Two lines of fixed height (each truncated to the window's width), so that the 3D
+    /// view below keeps its size, and so its frame, whatever the text.
     fn status_bar(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal_wrapped(|ui| {
-            let t = &self.timings;
-            ui.label(format!(
-                "{} | {}x{} | frame {:.1} ms (CPU {:.2} ms, GPU + read-back {:.1} ms) | tone map + upload {:.1} ms | UI {:.1} ms | {}",
-                self.settings.method().name(),
-                self.view_size.0,
-                self.view_size.1,
-                t.frame_total_ms + t.upload_ms,
-                t.frame_cpu_ms,
-                t.frame_total_ms - t.frame_cpu_ms,
-                t.upload_ms,
-                t.ui_ms,
-                self.gpu.adapter_name()
-            ));
-            if self.split != SplitMode::Off {
-                let rmse = self
-                    .comparison
-                    .as_ref()
-                    .map_or("-".into(), |c| format!("{:.4}", c.metrics.rel_rmse));
-                ui.label(
-                    RichText::new(format!(
-                        "reference {} spp ({:.0} ms for the last {} spp) | relative RMSE {rmse}",
-                        self.reference_spp(),
-                        self.ref_pass.0,
-                        self.ref_pass.1
-                    ))
-                    .strong(),
-                );
-            }
+        let t = &self.timings;
+        let line = format!(
+            "{} | {}x{} | frame {:.1} ms (CPU {:.2} ms, GPU + read-back {:.1} ms) | tone map + upload {:.1} ms | UI {:.1} ms | {}",
+            self.settings.method().name(),
+            self.view_size.0,
+            self.view_size.1,
+            t.frame_total_ms + t.upload_ms,
+            t.frame_cpu_ms,
+            t.frame_total_ms - t.frame_cpu_ms,
+            t.upload_ms,
+            t.ui_ms,
+            self.gpu.adapter_name()
+        );
+        ui.add(egui::Label::new(line).truncate());
+        let reference = if self.split == SplitMode::Off {
+            "reference: off (S: split against the path tracer)".to_string()
+        } else {
+            let rmse = self
+                .comparison
+                .as_ref()
+                .map_or("-".into(), |c| format!("{:.4}", c.metrics.rel_rmse));
+            format!(
+                "reference {} spp ({:.0} ms for the last {} spp) | relative RMSE {rmse}",
+                self.reference_spp(),
+                self.ref_pass.0,
+                self.ref_pass.1
+            )
+        };
+        ui.horizontal(|ui| {
             if ui.button("Help (H)").clicked() {
                 self.help = !self.help;
             }
+            ui.add(egui::Label::new(RichText::new(reference).strong()).truncate());
         });
     }
 
@@ -282,7 +285,9 @@ impl App<'_> {
             if ui.button("Bundle's").clicked() {
                 self.set_env_source(EnvSource::Bundle);
             }
-            if ui.button("Procedural sky").clicked() && !matches!(self.env_source, EnvSource::Sky { .. }) {
+            if ui.button("Procedural sky").clicked()
+                && !matches!(self.env_source, EnvSource::Sky { .. })
+            {
                 self.set_env_source(EnvSource::Sky {
                     elevation_deg: 30.0,
                     azimuth_deg: 90.0,
@@ -323,7 +328,10 @@ impl App<'_> {
             self.dirty.tonemap = true;
         }
         let mut bg = self.opts.background;
-        if ui.checkbox(&mut bg, "environment as background (G)").changed() {
+        if ui
+            .checkbox(&mut bg, "environment as background (G)")
+            .changed()
+        {
             self.opts.background = bg;
             self.dirty.render = true;
         }
@@ -333,7 +341,11 @@ impl App<'_> {
     /// the mouse.
     fn view(&mut self, ui: &mut egui::Ui) {
         for e in self.errors.values() {
-            ui.label(RichText::new(e).color(Color32::from_rgb(255, 110, 100)).strong());
+            ui.label(
+                RichText::new(e)
+                    .color(Color32::from_rgb(255, 110, 100))
+                    .strong(),
+            );
         }
         let avail = ui.available_rect_before_wrap();
         let ppp = ui.ctx().pixels_per_point();
