@@ -8,7 +8,7 @@
 #   - mesa-vulkan-drivers, libvulkan1 : the Vulkan loader and Mesa's drivers, among them
 #                     lavapipe (a CPU Vulkan driver), for relight-gpu's tests and
 #                     `relight render --gpu` (feature `gpu`) on machines without a GPU
-#   - xvfb          : a virtual X display for the interactive viewer's tests (to come)
+#   - xvfb          : a virtual X display for the interactive viewer's tests (tests/view.rs)
 #   - a Python venv with Mitsuba 3 + numpy at ${RELIGHT_VENV:-$HOME/.cache/relight/venv},
 #     used only for ground truth (tools/mitsuba_reference.py and the tests that compare with it)
 # Each step is skipped when already done. Set RELIGHT_SKIP_MITSUBA=1 to skip the venv.

@@ -13,10 +13,12 @@ else
 fi
 echo "== python: tools/test_mitsuba_reference.py"
 "$py" tools/test_mitsuba_reference.py
-# The binary's optional GPU renderer is on (`relight-cli/gpu`: relight-gpu on Vulkan, lavapipe
-# from scripts/setup.sh where there is no GPU) so that its CLI tests (tests/gpu.rs) and the
-# bench section compile and run in the same build: wgpu compiles once. relight-gpu's own
-# tests run here too. (`cargo test --release -p relight-cli --test gpu` without the feature
-# checks that a default build refuses --gpu by name.)
-echo "== cargo test --release --workspace --features relight-cli/gpu"
-cargo test --release --workspace --features relight-cli/gpu
+# The binary's optional GPU renderer and viewer are on (`relight-cli/view`, which implies
+# `relight-cli/gpu`: relight-gpu on Vulkan, lavapipe from scripts/setup.sh where there is no
+# GPU; the viewer's tests start their own Xvfb) so that the CLI tests (tests/gpu.rs,
+# tests/view.rs) and the bench section compile and run in the same build: wgpu compiles once.
+# relight-gpu's and relight-view's own tests run here too. (`cargo test --release -p
+# relight-cli --test gpu --test view` without the features checks that a default build
+# refuses --gpu and `view` by name.)
+echo "== cargo test --release --workspace --features relight-cli/view"
+cargo test --release --workspace --features relight-cli/view

@@ -156,7 +156,10 @@ impl EnvArgs {
             );
         }
         let mut env = match &self.env {
-            Some(p) => Environment::new(relight_scene::io::load_env(p, self.layout()?)?),
+            Some(p) => Environment::new(relight_scene::io::load_env(
+                p,
+                layout(self.layout.as_deref())?,
+            )?),
             None => scene_file::build_env(&scene.environment).with_context(|| {
                 format!(
                     "{}: loading the baked scene's environment (pass --env to use another)",
@@ -172,19 +175,9 @@ impl EnvArgs {
         }
         Ok(env)
     }
-
-    fn layout(&self) -> Result<Option<relight_sphere::envmap::EnvLayout>> {
-        self.layout
-            .as_deref()
-            .map(|l| {
-                parse_layout(l)
-                    .with_context(|| format!("unknown --layout '{l}' (latlong, cube, probe)"))
-            })
-            .transpose()
-    }
 }
 
-/// The environment layout option of `project` and `decompose`.
+/// The environment layout option of `render`, `project` and `decompose`.
 pub fn layout(s: Option<&str>) -> Result<Option<relight_sphere::envmap::EnvLayout>> {
     s.map(|l| {
         parse_layout(l).with_context(|| format!("unknown --layout '{l}' (latlong, cube, probe)"))

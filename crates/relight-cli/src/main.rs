@@ -61,6 +61,15 @@ enum Cmd {
     Project(info::ProjectArgs),
     /// Benchmarks, each against a baseline measured in the same run.
     Bench(BenchArgs),
+    /// The interactive viewer: a bundle relit on the GPU, next to a path-traced reference.
+    #[cfg(feature = "view")]
+    View(relight_view::cli::Args),
+    /// The interactive viewer (needs a build with `--features view`).
+    #[cfg(not(feature = "view"))]
+    View {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
 /// Arguments of `relight demo`.
@@ -191,6 +200,10 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
             out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);
         }
+        #[cfg(feature = "view")]
+        Cmd::View(a) => relight_view::cli::run_cli(a)?,
+        #[cfg(not(feature = "view"))]
+        Cmd::View { .. } => anyhow::bail!("view: this relight was built without the viewer; rebuild it with `cargo build --release --features view` (it then needs a display and a Vulkan driver: on Debian `apt-get install mesa-vulkan-drivers libvulkan1`)"),
     }
     Ok(())
 }
