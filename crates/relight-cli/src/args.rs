@@ -155,16 +155,12 @@ impl EnvArgs {
                 "--env-scale {s} is not a finite number >= 0"
             );
         }
+        let lay = layout(self.layout.as_deref())?;
         let mut env = match &self.env {
-            Some(p) => Environment::new(relight_scene::io::load_env(
-                p,
-                layout(self.layout.as_deref())?,
-            )?),
+            Some(p) => Environment::new(relight_scene::io::load_env(p, lay)?),
             None => scene_file::build_env(&scene.environment).with_context(|| {
-                format!(
-                    "{}: loading the baked scene's environment (pass --env to use another)",
-                    bundle.display()
-                )
+                let b = bundle.display();
+                format!("{b}: loading the baked scene's environment (pass --env to use another)")
             })?,
         };
         if let Some(r) = self.rotate_env {

@@ -265,11 +265,12 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 out: a.out.clone(),
             })?;
         }
-        Vmf => {
-            let given = |id: &str| args::given(m, id);
-            let common = (a.scenes.as_slice(), a.examples.as_path(), a.spp, a.width);
-            vmf::run(&vmf::VmfEval::from_args(&a.vmf, given, common, &a.out)?)?;
-        }
+        Vmf => vmf::run_args(
+            &a.vmf,
+            |id: &str| args::given(m, id),
+            (a.scenes.as_slice(), a.examples.as_path(), a.spp, a.width),
+            &a.out,
+        )?,
     }
     print(&a, out)
 }

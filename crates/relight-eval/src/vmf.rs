@@ -294,6 +294,19 @@ pub struct Row {
     pub reference: String,
 }
 
+/// [`VmfEval::from_args`], then [`run`]: `relight eval --method vmf`.
+///
+/// # Errors
+/// As those two.
+pub fn run_args(
+    args: &VmfEvalArgs,
+    given: impl Fn(&str) -> bool,
+    common: (&[PathBuf], &Path, u32, Option<u32>),
+    out: &Path,
+) -> Result<()> {
+    run(&VmfEval::from_args(args, given, common, out)?).map(drop)
+}
+
 /// Run the experiments; returns the rows (also written as results.md / results.json).
 ///
 /// # Errors

@@ -64,6 +64,16 @@ impl Method for Vmf {
         ctx: &BakeContext,
     ) -> Result<VmfBaked, MethodError> {
         Vmf::validate(settings)?;
+        // Views are parametrised in each vertex's frame of its normal alone (section 4.2), so
+        // an anisotropic BRDF, whose frame follows a tangent, is refused rather than baked in
+        // another frame than the path tracer's.
+        if let Some(i) = (input.scene.materials.iter())
+            .position(|m| matches!(m, relight_scene::material::Material::Ward { .. }))
+        {
+            return Err(MethodError::Settings(format!(
+                "material {i} is Ward (anisotropic): the vmf bake parametrises views by the normal alone; render Ward with --method cuts (or sg)"
+            )));
+        }
         let n = input.scene.mesh.vertex_count();
         let t0 = Instant::now();
         let caster = build_caster(&input, ctx)?;
