@@ -66,7 +66,7 @@
 //! // times the cosine, evaluated at each merged cluster's direction, is 1 / pi n . w):
 //! // int V cos / pi, 1 without the sphere, which hides about 5% of the cosine-weighted sky.
 //! let c = bake.cuts.cut(0);
-//! let b = shade(&light, [c, c, c], [1.0, 0.0, 0.0], |w| {
+//! let b = shade(&light, [c, c, c], [1.0, 0.0, 0.0], false, |w: Vec3| {
 //!     Vec3::splat(w.y.max(0.0) * std::f32::consts::FRAC_1_PI)
 //! });
 //! assert!(b.x > 0.9 && b.x < 0.99, "{b}");
