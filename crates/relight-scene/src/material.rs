@@ -423,6 +423,15 @@ impl Material {
             }
             Ok(())
         }
+        // A diffuse + specular pair that sums to at most 1 (Blinn-Phong, Ward).
+        fn pair(diffuse: Vec3, specular: Vec3) -> Result<(), MaterialError> {
+            refl("diffuse", diffuse)?;
+            refl("specular", specular)?;
+            if (diffuse + specular).max_element() > 1.0 + 1e-6 {
+                return Err(MaterialError::EnergyGain(diffuse + specular));
+            }
+            Ok(())
+        }
         fn rough(alpha: f32) -> Result<(), MaterialError> {
             if !(mf::MIN_ALPHA..=2.0).contains(&alpha) {
                 return Err(MaterialError::Alpha(alpha));
@@ -436,11 +445,7 @@ impl Material {
                 specular,
                 exponent,
             } => {
-                refl("diffuse", diffuse)?;
-                refl("specular", specular)?;
-                if (diffuse + specular).max_element() > 1.0 + 1e-6 {
-                    return Err(MaterialError::EnergyGain(diffuse + specular));
-                }
+                pair(diffuse, specular)?;
                 if !(exponent.is_finite() && exponent > 0.0) {
                     return Err(MaterialError::Exponent(exponent));
                 }
@@ -471,11 +476,7 @@ impl Material {
                 alpha_y,
                 tangent,
             } => {
-                refl("diffuse", diffuse)?;
-                refl("specular", specular)?;
-                if (diffuse + specular).max_element() > 1.0 + 1e-6 {
-                    return Err(MaterialError::EnergyGain(diffuse + specular));
-                }
+                pair(diffuse, specular)?;
                 for a in [alpha_x, alpha_y] {
                     if !(WARD_MIN_ALPHA..=1.0).contains(&a) {
                         return Err(MaterialError::WardAlpha(a));

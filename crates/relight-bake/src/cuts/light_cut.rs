@@ -49,6 +49,9 @@ pub const DEFAULT_LIGHT_SIGMA: f32 = 2.0;
 /// Below this angle (radians) of the five-point rule a cluster is shaded at its direction
 /// alone ([`LightCut::spread_average`]): about the angular radius of one light of 32K.
 pub const SPREAD_MIN_ANGLE: f32 = 0.01;
+/// `cos(SPREAD_MIN_ANGLE)` (`1 - 0.01^2 / 2` to f32 precision), compared per cluster and
+/// pixel.
+const SPREAD_MIN_COS: f32 = 0.999_95;
 
 /// An illumination cut: nodes in increasing post-order index with their cluster means.
 #[derive(Clone, Debug, PartialEq)]
@@ -89,7 +92,7 @@ impl LightCut {
     pub fn spread_average(&self, node: u32, mut brdf: impl FnMut(Vec3) -> Vec3) -> Vec3 {
         let mu = self.direction(node);
         let c = self.spread_cos[node as usize];
-        if c >= SPREAD_MIN_ANGLE.cos() {
+        if c >= SPREAD_MIN_COS {
             return brdf(mu);
         }
         let s = (1.0 - c * c).max(0.0).sqrt();
@@ -319,7 +322,7 @@ mod tests {
             let got = c.spread_average(p, |w| Vec3::splat(a.dot(w))).x as f64;
             let konst = c.spread_average(p, |_| Vec3::splat(2.5)).x;
             assert!((konst - 2.5).abs() < 1e-5, "node {p}: {konst}");
-            if c.spread_cos[p as usize] < SPREAD_MIN_ANGLE.cos() {
+            if c.spread_cos[p as usize] < SPREAD_MIN_COS {
                 wide += 1;
                 let want = num / den;
                 assert!(
@@ -329,6 +332,11 @@ mod tests {
             }
         }
         assert!(wide > 100, "the tree has wide clusters: {wide}");
+    }
+
+    #[test]
+    fn spread_min_cos_is_the_angles_cosine() {
+        assert!((SPREAD_MIN_COS - SPREAD_MIN_ANGLE.cos()).abs() < 1e-6);
     }
 
     fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
