@@ -3,7 +3,7 @@
 //! and without a Vulkan driver a message saying what to install, a non-zero exit, no output,
 //! and the CPU render still working. `scripts/test.sh` runs this file with `--features gpu`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 mod common;
 use common::{assert_clean_failure, relight, stderr, tmpdir};
@@ -12,33 +12,9 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// A bundle of a Lambert sphere on a plane under the procedural sky, in `dir`.
-fn bundle(dir: &Path) -> std::path::PathBuf {
-    let scene = dir.join("scene.json");
-    std::fs::write(
-        &scene,
-        r#"{"shapes": [{"type": "sphere", "center": [0, 0.6, 0], "radius": 0.5, "rings": 16,
-              "material": {"type": "lambert", "albedo": [0.5, 0.5, 0.5]}},
-             {"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 8}],
-           "environment": {"type": "sky", "sun_elevation_deg": 40, "sun_azimuth_deg": 30,
-                           "turbidity": 3, "ground_albedo": [0.3, 0.3, 0.3]},
-           "camera": {"origin": [0, 1.5, 3], "target": [0, 0.4, 0], "up": [0, 1, 0],
-                      "fov_deg": 40, "width": 64, "height": 48}}"#,
-    )
-    .unwrap();
-    let b = dir.join("b.relight");
-    let o = relight(&[
-        "bake",
-        s(&scene),
-        "-o",
-        s(&b),
-        "--samples",
-        "32",
-        "--sh-order",
-        "3",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    b
+/// The shared sky-sphere bundle ([`common::sky_sphere_sh_bundle`]) of this file's tests.
+fn bundle(dir: &Path) -> PathBuf {
+    common::sky_sphere_sh_bundle(dir, 0.5, [0.0, 1.5, 3.0], [0.0, 0.4, 0.0])
 }
 
 /// `relight` with extra environment variables.

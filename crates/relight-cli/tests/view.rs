@@ -19,34 +19,9 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// A Lambert sphere on a plane under the procedural sky (sun at azimuth 30 degrees, so a
-/// rotation of the environment moves the light), baked as `sh` (order 3) in `dir`.
+/// The shared sky-sphere bundle ([`common::sky_sphere_sh_bundle`]) of this file's tests.
 fn bundle(dir: &Path) -> PathBuf {
-    let scene = dir.join("scene.json");
-    std::fs::write(
-        &scene,
-        r#"{"shapes": [{"type": "sphere", "center": [0, 0.6, 0], "radius": 0.5, "rings": 16,
-              "material": {"type": "lambert", "albedo": [0.6, 0.6, 0.6]}},
-             {"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 8}],
-           "environment": {"type": "sky", "sun_elevation_deg": 40, "sun_azimuth_deg": 30,
-                           "turbidity": 3, "ground_albedo": [0.3, 0.3, 0.3]},
-           "camera": {"origin": [0, 1.2, 3], "target": [0, 0.5, 0], "up": [0, 1, 0],
-                      "fov_deg": 40, "width": 64, "height": 48}}"#,
-    )
-    .unwrap();
-    let b = dir.join("b.relight");
-    let o = relight(&[
-        "bake",
-        s(&scene),
-        "-o",
-        s(&b),
-        "--samples",
-        "32",
-        "--sh-order",
-        "3",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    b
+    common::sky_sphere_sh_bundle(dir, 0.6, [0.0, 1.2, 3.0], [0.0, 0.5, 0.0])
 }
 
 /// An X server for the test's windows, killed when dropped.

@@ -90,3 +90,33 @@ pub fn eval_rows(cwd: &Path, out: &Path, args: &[&str]) -> Vec<serde_json::Value
         serde_json::from_slice(&std::fs::read(out.join("results.json")).unwrap()).unwrap();
     rows.as_array().unwrap().clone()
 }
+
+/// A Lambert sphere (albedo `albedo`) on a plane under the procedural sky (sun at azimuth 30
+/// degrees, so a rotation of the environment moves the light), seen from `origin` towards
+/// `target` at 64 x 48, baked as `sh` (order 3, 32 samples) into `dir/b.relight`.
+pub fn sky_sphere_sh_bundle(
+    dir: &Path,
+    albedo: f32,
+    origin: [f32; 3],
+    target: [f32; 3],
+) -> PathBuf {
+    let scene = dir.join("scene.json");
+    std::fs::write(
+        &scene,
+        format!(
+            r#"{{"shapes": [{{"type": "sphere", "center": [0, 0.6, 0], "radius": 0.5, "rings": 16,
+              "material": {{"type": "lambert", "albedo": [{albedo}, {albedo}, {albedo}]}}}},
+             {{"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 8}}],
+           "environment": {{"type": "sky", "sun_elevation_deg": 40, "sun_azimuth_deg": 30,
+                           "turbidity": 3, "ground_albedo": [0.3, 0.3, 0.3]}},
+           "camera": {{"origin": {origin:?}, "target": {target:?}, "up": [0, 1, 0],
+                      "fov_deg": 40, "width": 64, "height": 48}}}}"#
+        ),
+    )
+    .unwrap();
+    let b = dir.join("b.relight");
+    let (sc, bs) = (scene.to_str().unwrap(), b.to_str().unwrap());
+    let o = relight(&["bake", sc, "-o", bs, "--samples", "32", "--sh-order", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    b
+}
