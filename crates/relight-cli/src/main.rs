@@ -117,8 +117,8 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
-    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, vmf-fit, gpu (a build with
-    /// `--features gpu`: GPU frames at 1280 x 720 against the CPU frames).
+    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, cuts-frame, vmf-fit, vmf-bake,
+    /// gpu (a build with `--features gpu`: GPU frames at 1280 x 720 against the CPU frames).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
 }

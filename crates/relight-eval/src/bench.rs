@@ -31,7 +31,10 @@
 //!     per-triangle merge and shading, against the per-fragment merge in the same run.
 //! 12. [`vmf_fit`]: the vMF material fit, EM (what the bake runs) against Levenberg-Marquardt
 //!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
-//! 13. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
+//! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial
+//!     refinement against a fixed level-1 bake of the same mesh, then its 512 x 512 CPU frame
+//!     against `sg`'s and SH's frames of the same mesh and camera (issue 12 item 8).
+//! 14. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
 //!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
@@ -52,6 +55,7 @@ pub mod sg_fit;
 pub mod sg_frame;
 pub mod sh_bake;
 pub mod shard;
+pub mod vmf_bake;
 pub mod vmf_fit;
 
 use crate::{EvalError, Result};
@@ -221,7 +225,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 14] = [
+pub const SECTIONS: [&str; 15] = [
     "rays",
     "sh-bake",
     "shard",
@@ -235,6 +239,7 @@ pub const SECTIONS: [&str; 14] = [
     "cuts-bake",
     "cuts-frame",
     "vmf-fit",
+    "vmf-bake",
     "gpu",
 ];
 
@@ -322,6 +327,11 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     }
     if on("vmf-fit") {
         push(vmf_fit::section(a.quick));
+    }
+    if on("vmf-bake") {
+        vmf_bake::sections(&a.data, a.quick)?
+            .into_iter()
+            .for_each(&mut push);
     }
     if on("gpu") {
         #[cfg(feature = "gpu")]
