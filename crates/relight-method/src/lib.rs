@@ -43,6 +43,7 @@ mod error;
 pub mod hybrid;
 pub mod job;
 pub mod memory;
+mod prefiltered;
 pub mod sg;
 pub mod sh;
 pub mod shard;

@@ -3,17 +3,14 @@
 //! (`relight_render::shade_sg`).
 
 use super::SgBaked;
+use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
 use crate::PrepareTimes;
-use crate::{ms_since, Frame, FrameOptions, FrameOutput, FrameTimes, MethodError, MethodKind};
-use relight_render::raster::RasterOptions;
+use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
 use relight_render::shade_sg::{SgLighting, SgRenderer};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
-use std::time::Instant;
 
 /// Largest base face size of the prefiltered chain.
-pub const MAX_PREFILTER_SIZE: usize = 1024;
-
 /// Settings of the `sg` frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
@@ -42,7 +39,7 @@ pub struct SgFrame<'a> {
     baked: &'a SgBaked,
     renderer: SgRenderer<'a>,
     prefilter_size: usize,
-    lighting: Option<(SgLighting, Environment)>,
+    lighting: Lit,
 }
 
 impl<'a> SgFrame<'a> {
@@ -51,12 +48,7 @@ impl<'a> SgFrame<'a> {
     /// # Errors
     /// [`MethodError::Settings`] for a prefilter size that is not a power of two up to 1024.
     pub fn new(baked: &'a SgBaked, s: &SgFrameSettings) -> Result<Self, MethodError> {
-        if !s.prefilter_size.is_power_of_two() || s.prefilter_size > MAX_PREFILTER_SIZE {
-            return Err(MethodError::Settings(format!(
-                "prefilter size {} is not a power of two up to {MAX_PREFILTER_SIZE}",
-                s.prefilter_size
-            )));
-        }
+        check_prefilter_size(s.prefilter_size, "sg")?;
         Ok(SgFrame {
             baked,
             renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake),
@@ -84,35 +76,17 @@ impl Frame for SgFrame<'_> {
     }
 
     fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError> {
-        let t0 = Instant::now();
-        let lighting = SgLighting::new(env, self.baked.bake.diffuse.order, self.prefilter_size);
-        self.lighting = Some((lighting, env.clone()));
-        Ok(PrepareTimes {
-            environment_ms: ms_since(t0),
-            shade_ms: 0.0,
-        })
+        let (order, size) = (self.baked.bake.diffuse.order, self.prefilter_size);
+        Ok(set_lighting(&mut self.lighting, env, || {
+            SgLighting::new(env, order, size)
+        }))
     }
 
     fn render(&self, camera: &Camera, opts: &FrameOptions) -> FrameOutput {
-        let (lighting, env) = self
-            .lighting
-            .as_ref()
-            .expect("set_environment before render");
-        let (img, t) = self.renderer.render(
-            lighting,
-            camera,
-            opts.background.then_some(env),
-            &RasterOptions {
-                supersample: opts.supersample,
-            },
-        );
-        FrameOutput {
-            image: img.image,
-            times: FrameTimes {
-                vertex_ms: t.vertex_ms,
-                pixel_ms: t.pixel_ms,
-            },
-        }
+        render_lit(&self.lighting, camera, opts, |l, c, bg, ro| {
+            let (img, t) = self.renderer.render(l, c, bg, ro);
+            (img, t.vertex_ms, t.pixel_ms)
+        })
     }
 
     fn summary(&self) -> String {

@@ -3,18 +3,11 @@
 //! with one fetch per lobe (`relight_render::shade_vmf`, paper section 6.2).
 
 use super::VmfBaked;
-use crate::{
-    ms_since, Frame, FrameOptions, FrameOutput, FrameTimes, MethodError, MethodKind, PrepareTimes,
-};
-use relight_render::raster::RasterOptions;
-use relight_render::shade_sg::SgLighting;
+use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
+use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
 use relight_render::shade_vmf::{kappa_resolved, vmf_lighting, VmfRenderer};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
-use std::time::Instant;
-
-/// Largest finest face size of the prefiltered chain.
-pub const MAX_PREFILTER_SIZE: usize = 1024;
 
 /// Settings of the `vmf` frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,7 +38,7 @@ pub struct VmfFrame<'a> {
     baked: &'a VmfBaked,
     renderer: VmfRenderer<'a>,
     prefilter_size: usize,
-    lighting: Option<(SgLighting, Environment)>,
+    lighting: Lit,
 }
 
 impl<'a> VmfFrame<'a> {
@@ -54,12 +47,7 @@ impl<'a> VmfFrame<'a> {
     /// # Errors
     /// [`MethodError::Settings`] for a prefilter size that is not a power of two up to 1024.
     pub fn new(baked: &'a VmfBaked, s: &VmfFrameSettings) -> Result<Self, MethodError> {
-        if !s.prefilter_size.is_power_of_two() || s.prefilter_size > MAX_PREFILTER_SIZE {
-            return Err(MethodError::Settings(format!(
-                "vmf prefilter size {} is not a power of two up to {MAX_PREFILTER_SIZE}",
-                s.prefilter_size
-            )));
-        }
+        check_prefilter_size(s.prefilter_size, "vmf")?;
         Ok(VmfFrame {
             baked,
             renderer: VmfRenderer::new(&baked.scene.mesh, &baked.bake),
@@ -75,36 +63,18 @@ impl Frame for VmfFrame<'_> {
     }
 
     fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError> {
-        let t0 = Instant::now();
         let order = self.baked.settings.diffuse_sh_order as usize;
-        let lighting = vmf_lighting(env, self.prefilter_size, order);
-        self.lighting = Some((lighting, env.clone()));
-        Ok(PrepareTimes {
-            environment_ms: ms_since(t0),
-            shade_ms: 0.0,
-        })
+        let size = self.prefilter_size;
+        Ok(set_lighting(&mut self.lighting, env, || {
+            vmf_lighting(env, size, order)
+        }))
     }
 
     fn render(&self, camera: &Camera, opts: &FrameOptions) -> FrameOutput {
-        let (lighting, env) = self
-            .lighting
-            .as_ref()
-            .expect("set_environment before render");
-        let (img, t) = self.renderer.render(
-            lighting,
-            camera,
-            opts.background.then_some(env),
-            &RasterOptions {
-                supersample: opts.supersample,
-            },
-        );
-        FrameOutput {
-            image: img.image,
-            times: FrameTimes {
-                vertex_ms: t.vertex_ms,
-                pixel_ms: t.pixel_ms,
-            },
-        }
+        render_lit(&self.lighting, camera, opts, |l, c, bg, ro| {
+            let (img, t) = self.renderer.render(l, c, bg, ro);
+            (img, t.vertex_ms, t.pixel_ms)
+        })
     }
 
     fn summary(&self) -> String {
