@@ -339,6 +339,7 @@ mod tests {
         let ground = ground_plane(Vec3::ZERO, 6.0, 2);
         mesh.append(&ground, 2);
         let scene = Scene {
+            maps: Default::default(),
             mesh,
             materials: vec![
                 Material::Lambert {

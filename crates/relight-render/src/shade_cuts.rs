@@ -14,7 +14,11 @@
 //! ([`CutFunction::VisibilityCosine`], of the vertex normals) it is divided out, so the
 //! cosine is counted once; with [`CutFunction::Visibility`] (binary visibility) `eval` is
 //! used as it is, so the cosine follows the per-pixel normal. Materials are read at render
-//! time from the scene (nothing of them is baked).
+//! time from the scene (nothing of them is baked), with their texture and normal maps applied
+//! per fragment by `relight_scene::material::maps::shading_at`, the path tracer's lookup. A
+//! normal map moves the BRDF's frame; with [`CutFunction::VisibilityCosine`] the cosine
+//! stays the one baked with the vertex normals (the paper's approximation), with
+//! [`CutFunction::Visibility`] it follows the mapped normal as the path tracer's does.
 
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use glam::Vec3;
@@ -25,6 +29,7 @@ use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
 use relight_scene::material::microfacet;
+use relight_scene::material::maps::{shading_at, SceneMaps};
 use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
@@ -37,7 +42,12 @@ const HORIZON: f32 = 1e-3;
 /// The cuts renderer over one whole-mesh bake.
 pub struct CutsShader<'a> {
     mesh: &'a TriMesh,
+    /// The constant materials (what [`shading_at`] reads)...
+    constants: Vec<Material>,
+    /// ... and the same prepared for evaluation.
     materials: Vec<MaterialEval>,
+    /// Their texture and normal maps ([`CutsShader::with_maps`]).
+    maps: SceneMaps,
     bake: &'a CutsBake,
     function: CutFunction,
     /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
@@ -64,7 +74,9 @@ impl<'a> CutsShader<'a> {
         );
         CutsShader {
             mesh,
-            materials: materials.into_iter().map(MaterialEval::new).collect(),
+            materials: materials.iter().copied().map(MaterialEval::new).collect(),
+            constants: materials,
+            maps: SceneMaps::default(),
             bake,
             function,
             spread: false,
@@ -80,6 +92,37 @@ impl<'a> CutsShader<'a> {
         self
     }
 
+    /// With the materials' texture and normal maps (built over this shader's mesh): every
+    /// fragment of a mapped material is shaded with [`shading_at`]'s material and normal,
+    /// the path tracer's lookup.
+    pub fn with_maps(mut self, maps: SceneMaps) -> Self {
+        self.maps = maps;
+        self
+    }
+
+    /// The prepared material and shading normal of fragment `f` ([`shading_at`] when its
+    /// material has maps; `owned` holds the mapped material).
+    #[inline]
+    fn material_at<'s>(
+        &'s self,
+        f: &Fragment,
+        owned: &'s mut Option<MaterialEval>,
+    ) -> (&'s MaterialEval, Vec3) {
+        let id = self.mesh.material_ids[f.tri as usize];
+        if self.maps.of(id).is_none() {
+            return (&self.materials[id as usize], f.shading_normal);
+        }
+        let (m, frame) = shading_at(
+            self.mesh,
+            &self.constants,
+            &self.maps,
+            f.tri,
+            f.bary,
+            f.shading_normal,
+        );
+        (owned.insert(MaterialEval::new(m)), frame.n)
+    }
+
     /// Whether `material` is shaded with the cluster spread.
     #[inline]
     fn spreads(&self, material: &MaterialEval) -> bool {
@@ -91,8 +134,9 @@ impl<'a> CutsShader<'a> {
     /// still holds visible lights above it (the cut's mean says how much): its BRDF is
     /// evaluated at that direction lifted onto the horizon instead of dropping it.
     pub fn shade_fragment(&self, light: &LightCut, f: &Fragment, eye: Vec3) -> Vec3 {
-        let material = &self.materials[self.mesh.material_ids[f.tri as usize] as usize];
-        let frame = material.material().shading_frame(f.shading_normal);
+        let mut owned = None;
+        let (material, n) = self.material_at(f, &mut owned);
+        let frame = material.material().shading_frame(n);
         let wi = frame.to_local((eye - f.position).normalize_or_zero());
         if wi.z <= 0.0 {
             return Vec3::ZERO; // one-sided materials, as the path tracer's
@@ -178,10 +222,11 @@ impl<'a> CutsShader<'a> {
         eye: Vec3,
         out: &mut [Vec3],
     ) {
-        let material = &self.materials[self.mesh.material_ids[tri as usize] as usize];
-        let spread = self.spreads(material);
         for (f, o) in fs.iter().zip(out.iter_mut()) {
-            let n = f.shading_normal;
+            debug_assert_eq!(f.tri, tri);
+            let mut owned = None;
+            let (material, n) = self.material_at(f, &mut owned);
+            let spread = self.spreads(material);
             let view = (eye - f.position).normalize_or_zero();
             if view.dot(n) <= 0.0 {
                 *o = Vec3::ZERO; // one-sided materials, as the path tracer's

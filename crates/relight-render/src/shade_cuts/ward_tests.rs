@@ -75,6 +75,7 @@ fn ward_chosen_after_the_bake_matches_the_path_tracer_and_follows_its_tangent() 
         let shader = CutsShader::new(&mesh, materials.clone(), &bake, CutFunction::Visibility);
         let r = shader.render(&light, &camera, None, &RasterOptions { supersample: 2 });
         let scene = Scene {
+            maps: Default::default(),
             mesh: mesh.clone(),
             materials,
             env: env.clone(),
