@@ -468,6 +468,9 @@ impl TriangleCut {
 mod ward_tests;
 
 #[cfg(test)]
+mod texture_tests;
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use relight_bake::cuts::light_cut::LightCut;

@@ -74,7 +74,7 @@ impl Texture {
         }
         if let Some(i) = texels
             .iter()
-            .position(|t| !(t.min_element() >= 0.0 && t.max_element() <= 1.0))
+            .position(|t| !(t.cmpge(Vec3::ZERO).all() && t.cmple(Vec3::ONE).all()))
         {
             return Err(format!(
                 "texel ({}, {}) is {} (every channel must be finite and in [0, 1])",
@@ -232,4 +232,4 @@ fn read_exr_texture(path: &Path) -> Result<(usize, usize, Vec<Vec3>), SceneError
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
