@@ -297,7 +297,10 @@ pub fn parse_material(text: &str) -> Result<relight_scene::material::Material, S
 pub fn parse_material_override(text: &str) -> Result<cuts::MaterialOverride, String> {
     let inline = text.trim_start().starts_with('{');
     let (json, origin) = if inline {
-        (text.to_string(), std::path::PathBuf::from("./<inline material>"))
+        (
+            text.to_string(),
+            std::path::PathBuf::from("./<inline material>"),
+        )
     } else {
         let path = std::path::PathBuf::from(text);
         let bytes = relight_scene::io::files::read_file(

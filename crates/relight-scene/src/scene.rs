@@ -3,10 +3,10 @@
 use crate::camera::Camera;
 use crate::material::maps::{self, SceneMaps};
 use crate::material::Material;
-use relight_sphere::warp::Frame;
 use crate::mesh::TriMesh;
 use crate::{Mat3, Vec3};
 use relight_sphere::envmap::EnvMap;
+use relight_sphere::warp::Frame;
 
 /// Distant environment lighting: an environment map, a scale and a rotation about +Y.
 ///

@@ -16,7 +16,12 @@
 //! ```
 //!
 //! A shape without `material` keeps the materials of its file (OBJ/MTL, glTF) or gets the
-//! default (Lambert 0.8). Environments: `file` (any layout relight reads, optional
+//! default (Lambert 0.8). A shape's material may name texture and normal maps in the same
+//! object ([`MaterialDesc`]; what each map does: [`crate::material::maps`]):
+//! `"material": {"type": "ggx_plastic", "diffuse": [1, 1, 1], "specular": [1, 1, 1],
+//! "alpha": 0.2, "ior": 1.5, "maps": {"diffuse": "albedo.png", "roughness": "r.exr",
+//! "normal": "n.png"}}`; the shape needs texture coordinates (spheres and planes have
+//! them, a mesh file must). Environments: `file` (any layout relight reads, optional
 //! `"layout"`: `latlong`, `cube`, `probe`), `sky` (procedural sun and sky) or `constant`
 //! (`"radiance": [r, g, b]`).
 //!
@@ -26,6 +31,8 @@
 //! `../../shared/data/...`). The files themselves must be regular files within the size caps,
 //! and the references *inside* a model (glTF buffers, OBJ `mtllib`) may not leave the model's
 //! folder unless [`LoadOptions::paths`] allows it: the rules are in [`crate::io::files`].
+//! Material maps count as such references of the scene file: resolved against its folder
+//! and refused outside it unless [`LoadOptions::paths`] allows it (`--allow-outside-paths`).
 //!
 //! # Checks
 //! A description is checked when read ([`SceneDesc::from_json`], [`SceneDesc::read`]) and
@@ -635,7 +642,8 @@ impl EnvDesc {
 
 /// Build one shape (already validated); mesh files are loaded with `opts`.
 fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Material>), SceneError> {
-    let one = |m: &Option<MaterialDesc>| vec![m.as_ref().map_or_else(Material::default, |d| d.material)];
+    let one =
+        |m: &Option<MaterialDesc>| vec![m.as_ref().map_or_else(Material::default, |d| d.material)];
     Ok(match s {
         ShapeDesc::Mesh {
             file,

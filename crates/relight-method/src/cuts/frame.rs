@@ -8,6 +8,7 @@ use relight_bake::cuts::samples::sample_power;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
 use relight_scene::camera::Camera;
+use relight_scene::error::SceneError;
 use relight_scene::io::PathPolicy;
 use relight_scene::material::maps::{MaterialDesc, MaterialMaps, SceneMaps};
 use relight_scene::scene::Environment;
@@ -111,15 +112,24 @@ impl<'a> CutsFrame<'a> {
                         let policy = PathPolicy {
                             allow_outside: s.material_allow_outside_paths,
                         };
-                        let loaded = MaterialMaps::load(d, &m, &o.origin, &policy)
-                            .map_err(|e| MethodError::Settings(format!("--material: {e}")))?;
-                        SceneMaps::new(&baked.scene.mesh, vec![Some(Arc::new(loaded)); n])
-                            .map_err(|e| {
+                        let loaded =
+                            MaterialMaps::load(d, &m, &o.origin, &policy).map_err(|e| {
+                                let hint = match e {
+                                    SceneError::OutsideFolder { .. } => {
+                                        " (for the maps of --material: --material-allow-outside-paths)"
+                                    }
+                                    _ => "",
+                                };
+                                MethodError::Settings(format!("--material: {e}{hint}"))
+                            })?;
+                        SceneMaps::new(&baked.scene.mesh, vec![Some(Arc::new(loaded)); n]).map_err(
+                            |e| {
                                 MethodError::Settings(format!(
                                     "--material {}: {e}",
                                     o.origin.display()
                                 ))
-                            })?
+                            },
+                        )?
                     }
                 };
                 (vec![m; n], maps)
@@ -200,8 +210,22 @@ impl Frame for CutsFrame<'_> {
                 if l.error_bound_met { "met" } else { "not met" }
             )
         });
+        // The bundle keeps the scene's constant materials only.
+        let maps = if self.settings.material.is_none()
+            && self
+                .baked
+                .scene
+                .desc
+                .shapes
+                .iter()
+                .any(|s| s.maps().is_some())
+        {
+            "; the scene's texture maps are not in the bundle (constant materials): pass them with --material"
+        } else {
+            ""
+        };
         format!(
-            "cuts: {} vertices, {} lights, mean visibility cut {:.1} nodes{light}",
+            "cuts: {} vertices, {} lights, mean visibility cut {:.1} nodes{light}{maps}",
             self.baked.scene.mesh.vertex_count(),
             self.baked.settings.lights,
             c.mean_len()

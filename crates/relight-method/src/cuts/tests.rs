@@ -222,7 +222,13 @@ fn a_material_override_with_maps_renders_and_bad_maps_are_refused() {
     let dir = root.join("materials");
     std::fs::create_dir_all(&dir).unwrap();
     let checker: Vec<[u8; 3]> = (0..16)
-        .map(|i| if (i % 4 + i / 4) % 2 == 0 { [255; 3] } else { [0; 3] })
+        .map(|i| {
+            if (i % 4 + i / 4) % 2 == 0 {
+                [255; 3]
+            } else {
+                [0; 3]
+            }
+        })
         .collect();
     relight_scene::io::write_png_srgb8(&dir.join("checker.png"), 4, 4, &checker).unwrap();
     relight_scene::io::write_png_srgb8(&root.join("up.png"), 1, 1, &[[255; 3]]).unwrap();
@@ -251,17 +257,28 @@ fn a_material_override_with_maps_renders_and_bad_maps_are_refused() {
         frame.render(&camera, &FrameOptions::default()).image
     };
     let plain = render(&settings(
-        Some(relight_scene::material::Material::Lambert { albedo: glam::Vec3::splat(0.8) }.into()),
+        Some(
+            relight_scene::material::Material::Lambert {
+                albedo: glam::Vec3::splat(0.8),
+            }
+            .into(),
+        ),
         false,
     ));
-    let mapped = render(&settings(Some(write("m.json", r#"{"diffuse": "checker.png"}"#)), false));
+    let mapped = render(&settings(
+        Some(write("m.json", r#"{"diffuse": "checker.png"}"#)),
+        false,
+    ));
     let (mut darker, mut brighter) = (0, 0);
     for (a, b) in mapped.pixels.iter().zip(&plain.pixels) {
         darker += (a.x < 0.5 * b.x) as usize;
         // The map multiplies by at most 1 (f32 rounding of the same sum).
         brighter += (a.x > b.x * 1.0001 + 1e-6) as usize;
     }
-    assert!(darker > 20 && brighter == 0, "{darker} darker, {brighter} brighter");
+    assert!(
+        darker > 20 && brighter == 0,
+        "{darker} darker, {brighter} brighter"
+    );
     // Bad maps: each refused naming the problem.
     let err = |m: MaterialOverride, outside: bool| match whole.frame(&settings(Some(m), outside)) {
         Ok(_) => panic!("accepted"),
@@ -272,7 +289,10 @@ fn a_material_override_with_maps_renders_and_bad_maps_are_refused() {
     let e = err(write("out.json", r#"{"diffuse": "../up.png"}"#), false);
     assert!(e.contains("up.png") && e.contains("outside"), "{e}");
     assert!(whole
-        .frame(&settings(Some(write("out2.json", r#"{"diffuse": "../up.png"}"#)), true))
+        .frame(&settings(
+            Some(write("out2.json", r#"{"diffuse": "../up.png"}"#)),
+            true
+        ))
         .is_ok());
     // The same bake without texture coordinates.
     let mut bare = baked(false, None);

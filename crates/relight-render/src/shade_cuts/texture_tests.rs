@@ -135,9 +135,14 @@ fn textured_materials_chosen_after_the_bake_match_the_path_tracer() {
         .unwrap()
     };
     let cuts = |maps: SceneMaps| {
-        CutsShader::new(&s.mesh, s.materials.clone(), &s.bake, CutFunction::Visibility)
-            .with_maps(maps)
-            .render(&s.light, &s.camera, None, &RasterOptions { supersample: 2 })
+        CutsShader::new(
+            &s.mesh,
+            s.materials.clone(),
+            &s.bake,
+            CutFunction::Visibility,
+        )
+        .with_maps(maps)
+        .render(&s.light, &s.camera, None, &RasterOptions { supersample: 2 })
     };
     let reference = |maps: SceneMaps| {
         let scene = Scene {
@@ -161,7 +166,10 @@ fn textured_materials_chosen_after_the_bake_match_the_path_tracer() {
     let (pt_plain, var_plain) = reference(SceneMaps::default());
     let (pt_tex, var_tex) = reference(maps("ripples.png"));
     let mask = textured.full_coverage_mask();
-    assert!(mask.iter().filter(|&&k| k).count() > 1000, "the scene is in view");
+    assert!(
+        mask.iter().filter(|&&k| k).count() > 1000,
+        "the scene is in view"
+    );
     let b_plain = bias(&plain.image, &pt_plain, &var_plain, &mask);
     let b_tex = bias(&textured.image, &pt_tex, &var_tex, &mask);
     let b_ignored = bias(&plain.image, &pt_tex, &var_tex, &mask);
@@ -182,5 +190,8 @@ fn textured_materials_chosen_after_the_bake_match_the_path_tracer() {
     );
     // The controls must fail that bound by a margin, or the test could not fail.
     assert!(b_ignored > 2.0 * tolerance, "maps ignored: {b_ignored}");
-    assert!(b_flipped > 1.5 * tolerance, "normal map flipped: {b_flipped}");
+    assert!(
+        b_flipped > 1.5 * tolerance,
+        "normal map flipped: {b_flipped}"
+    );
 }

@@ -311,9 +311,7 @@ impl SceneMaps {
             return Ok(SceneMaps::default());
         }
         if mesh.uvs.is_none() {
-            return Err(
-                "a material has maps but the mesh has no texture coordinates (uvs)".into(),
-            );
+            return Err("a material has maps but the mesh has no texture coordinates (uvs)".into());
         }
         let normal = per_material
             .iter()

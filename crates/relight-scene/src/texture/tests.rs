@@ -95,12 +95,27 @@ fn bilinear_lookup_is_exact_at_texel_centres_and_wraps() {
     }
     // Halfway between two centres: their mean; at the right edge it mixes with column 0.
     let mid = t.lookup(Vec2::new(1.0 / 4.0, 1.0 - 0.5 / 3.0));
-    assert!((mid - (t.texel(0, 0) + t.texel(1, 0)) * 0.5).abs().max_element() < 1e-6);
+    assert!(
+        (mid - (t.texel(0, 0) + t.texel(1, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
     let edge = t.lookup(Vec2::new(1.0, 1.0 - 0.5 / 3.0));
-    assert!((edge - (t.texel(3, 0) + t.texel(0, 0)) * 0.5).abs().max_element() < 1e-6);
+    assert!(
+        (edge - (t.texel(3, 0) + t.texel(0, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
     // v = 0 is the bottom edge: between the last row and (wrapping) the first.
     let bottom = t.lookup(Vec2::new(0.5 / 4.0, 0.0));
-    assert!((bottom - (t.texel(0, 2) + t.texel(0, 0)) * 0.5).abs().max_element() < 1e-6);
+    assert!(
+        (bottom - (t.texel(0, 2) + t.texel(0, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
     // Non-finite coordinates read a texel, never panic.
     assert_eq!(t.lookup(Vec2::new(f32::NAN, 0.0)), t.texel(0, 0));
     let _ = t.lookup(Vec2::new(1e30, -1e30));
@@ -148,8 +163,7 @@ fn bad_texture_files_are_refused_naming_the_file_and_the_problem() {
     write_png(&at("wide.png"), wide, 1, 1, &vec![0u8; wide as usize]);
     let e = err(&at("wide.png"), Encoding::Data);
     assert!(e.contains("exceed the texture limit"), "{e}");
-    exr::prelude::write_rgb_file(at("wide.exr"), wide as usize, 1, |_, _| (0.0, 0.0, 0.0))
-        .unwrap();
+    exr::prelude::write_rgb_file(at("wide.exr"), wide as usize, 1, |_, _| (0.0, 0.0, 0.0)).unwrap();
     let e = err(&at("wide.exr"), Encoding::Data);
     assert!(e.contains("exceed the texture limit"), "{e}");
     // A directory is not a texture.

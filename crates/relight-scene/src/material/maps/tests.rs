@@ -88,7 +88,10 @@ fn a_tilted_normal_map_turns_the_normal_towards_the_tangent() {
     for (c, want) in [
         (Vec3::new(1.0, 0.5, 0.5), Vec3::X),
         (Vec3::new(0.5, 1.0, 0.5), Vec3::Z),
-        (Vec3::new(1.0, 0.5, 1.0), Vec3::new(1.0, 1.0, 0.0).normalize()),
+        (
+            Vec3::new(1.0, 0.5, 1.0),
+            Vec3::new(1.0, 1.0, 0.0).normalize(),
+        ),
     ] {
         let maps = SceneMaps::new(&mesh, vec![Some(Arc::new(constant_maps(Some(c))))]).unwrap();
         let (_, f) = shading_at(&mesh, &materials, &maps, 0, [0.3, 0.3, 0.4], Vec3::Y);
@@ -195,7 +198,9 @@ fn scene_files_load_maps_and_refuse_bad_ones_naming_the_file() {
         r#""type": "ggx_plastic", "diffuse": [1, 1, 1], "specular": [1, 1, 1], "alpha": 0.2, "ior": 1.5"#,
         r#""type": "lambert", "albedo": [1, 1, 1]"#,
     );
-    let lambert = lambert.replace("../outside.png", "d.png").replace("diffuse", "roughness");
+    let lambert = lambert
+        .replace("../outside.png", "d.png")
+        .replace("diffuse", "roughness");
     std::fs::write(dir.join("lambert.json"), &lambert).unwrap();
     let origin = dir.join("lambert.json");
     let e = SceneDesc::read(&origin)
@@ -209,11 +214,7 @@ fn scene_files_load_maps_and_refuse_bad_ones_naming_the_file() {
         "{e}"
     );
     // A map on a mesh without texture coordinates.
-    std::fs::write(
-        dir.join("tri.obj"),
-        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
-    )
-    .unwrap();
+    std::fs::write(dir.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let e = build(
         &dir,
         r#"{"type": "mesh", "file": "tri.obj"}"#,
