@@ -13,7 +13,8 @@
 //!   wrapping around every edge (repeat). Texture coordinates follow OBJ's convention: `v`
 //!   grows upwards, so `(u, v) = (0, 0)` is the bottom-left corner of the image and texel
 //!   `(x, y)` (from the top-left) has its centre at `u = (x + 0.5) / w`,
-//!   `v = 1 - (y + 0.5) / h`.
+//!   `v = 1 - (y + 0.5) / h`. (The glTF reader flips its downward `v` on load, so every mesh
+//!   carries this convention.)
 //!
 //! Loading reads through [`crate::io::files`] (regular files, bounded reads) and checks the
 //! announced size against [`MAX_TEXTURE_SIDE`] and [`MAX_TEXTURE_PIXELS`] before allocating
