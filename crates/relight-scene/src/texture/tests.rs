@@ -177,3 +177,33 @@ fn texture_new_checks_its_size() {
     assert!(Texture::new(2, 2, vec![Vec3::ZERO; 3]).is_err());
     assert!(Texture::constant(Vec3::splat(0.5)).is_ok());
 }
+
+/// Truncated and corrupted PNG and EXR textures are errors (or, when the damage misses
+/// what is read, textures), never panics.
+#[test]
+fn corrupted_textures_never_panic() {
+    let dir = temp_dir("tex-corrupt");
+    let png = dir.join("ok.png");
+    let data: Vec<u8> = (0..8 * 8 * 3).map(|i| (i * 37 % 256) as u8).collect();
+    write_png(&png, 8, 8, 3, &data);
+    let exr = dir.join("ok.exr");
+    let px: Vec<Vec3> = (0..16).map(|i| Vec3::splat(i as f32 / 16.0)).collect();
+    write_exr_raw(&exr, 4, 4, &px);
+    for (good, ext) in [(png, "png"), (exr, "exr")] {
+        let bytes = std::fs::read(&good).unwrap();
+        let bad = dir.join(format!("bad.{ext}"));
+        let mut n = 0;
+        for k in (0..bytes.len()).step_by(3) {
+            // Truncated at k, and byte k inverted.
+            let mut flipped = bytes.clone();
+            flipped[k] ^= 0xff;
+            for b in [&bytes[..k], &flipped[..]] {
+                std::fs::write(&bad, b).unwrap();
+                let r = std::panic::catch_unwind(|| Texture::read(&bad, Encoding::Colour));
+                assert!(r.is_ok(), "{ext}: panic at byte {k}");
+                n += 1;
+            }
+        }
+        assert!(n > 20);
+    }
+}
