@@ -388,6 +388,7 @@ impl Baked {
             desc: s.desc.clone(),
             mesh: std::mem::take(&mut s.mesh),
             materials: std::mem::take(&mut s.materials),
+            maps: std::mem::take(&mut s.maps),
         }
     }
 

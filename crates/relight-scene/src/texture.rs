@@ -125,6 +125,11 @@ impl Texture {
         self.height
     }
 
+    /// Every texel, row-major from the top-left.
+    pub fn texels(&self) -> &[Vec3] {
+        &self.texels
+    }
+
     /// Texel `(x, y)` from the top-left, coordinates wrapped into the image.
     #[inline]
     pub fn texel(&self, x: i64, y: i64) -> Vec3 {

@@ -52,8 +52,8 @@ pub struct CutsFrameSettings {
     /// `sigma` of the illumination cut's error phase, in units of the mean light (>= 0).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_LIGHT_SIGMA))]
     pub light_sigma: f32,
-    /// Render every surface with this material instead of the scene's (nothing of the
-    /// materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
+    /// Render every surface with this material instead of the scene's (and its maps, which
+    /// the bundle holds; nothing of the materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
     /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one. It may name texture
     /// and normal maps ("maps": {"diffuse": "albedo.png", "normal": "n.png"}, paths relative
     /// to the file's folder, which they may not leave); the bake's mesh needs texture
@@ -134,7 +134,7 @@ impl<'a> CutsFrame<'a> {
                 };
                 (vec![m; n], maps)
             }
-            None => (baked.scene.materials.clone(), SceneMaps::default()),
+            None => (baked.scene.materials.clone(), baked.scene.maps.clone()),
         };
         if s.light_cut == 0 || !(s.light_sigma.is_finite() && s.light_sigma >= 0.0) {
             return Err(MethodError::Settings(format!(
@@ -210,22 +210,8 @@ impl Frame for CutsFrame<'_> {
                 if l.error_bound_met { "met" } else { "not met" }
             )
         });
-        // The bundle keeps the scene's constant materials only.
-        let maps = if self.settings.material.is_none()
-            && self
-                .baked
-                .scene
-                .desc
-                .shapes
-                .iter()
-                .any(|s| s.maps().is_some())
-        {
-            "; the scene's texture maps are not in the bundle (constant materials): pass them with --material"
-        } else {
-            ""
-        };
         format!(
-            "cuts: {} vertices, {} lights, mean visibility cut {:.1} nodes{light}{maps}",
+            "cuts: {} vertices, {} lights, mean visibility cut {:.1} nodes{light}",
             self.baked.scene.mesh.vertex_count(),
             self.baked.settings.lights,
             c.mean_len()

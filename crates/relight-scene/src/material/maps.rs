@@ -120,7 +120,25 @@ fn check_applies(m: &Material, which: &str) -> Result<(), String> {
     }
 }
 
+/// The kinds of map, in the order of [`MaterialMaps::textures`].
+pub const MAP_KINDS: [&str; 4] = ["diffuse", "specular", "roughness", "normal"];
+
 impl MaterialMaps {
+    /// The four maps in the order of [`MAP_KINDS`].
+    pub fn textures(&self) -> [&Option<Texture>; 4] {
+        [&self.diffuse, &self.specular, &self.roughness, &self.normal]
+    }
+
+    /// The four maps in the order of [`MAP_KINDS`], to fill in.
+    pub fn textures_mut(&mut self) -> [&mut Option<Texture>; 4] {
+        [
+            &mut self.diffuse,
+            &mut self.specular,
+            &mut self.roughness,
+            &mut self.normal,
+        ]
+    }
+
     /// Load the maps `desc` names for `material`: each path is resolved against the folder of
     /// `origin` (the JSON file naming it) under `policy` ([`files::resolve_model_ref`]) and
     /// read as a [`Texture`]. Errors name the file (or `origin` and the map) and the problem.
@@ -331,6 +349,11 @@ impl SceneMaps {
     #[inline]
     pub fn of(&self, id: u32) -> Option<&MaterialMaps> {
         self.per_material.get(id as usize)?.as_deref()
+    }
+
+    /// Number of materials the maps were given for (`of` is `None` at and beyond it).
+    pub fn len(&self) -> usize {
+        self.per_material.len()
     }
 
     /// Whether no material has maps.
