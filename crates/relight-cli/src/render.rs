@@ -83,7 +83,7 @@ fn frame_settings(a: &Args, method: MethodKind) -> Result<FrameSettings> {
             ..a.hybrid
         }),
         MethodKind::Sg => FrameSettings::Sg(a.sg),
-        MethodKind::Cuts => FrameSettings::Cuts(a.cuts),
+        MethodKind::Cuts => FrameSettings::Cuts(a.cuts.clone()),
         MethodKind::Vmf => FrameSettings::Vmf(a.vmf),
     })
 }

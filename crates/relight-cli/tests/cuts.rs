@@ -215,3 +215,88 @@ fn bad_settings_and_foreign_options_are_refused() {
     assert_clean_failure(&o, "sh", &img);
     assert!(stderr(&o).contains("cuts"), "{}", stderr(&o));
 }
+
+/// `--material` naming texture maps: a half-black diffuse map blackens part of the sphere and
+/// leaves the rest as the constant material renders it; maps that are missing or leave
+/// the material file's folder fail cleanly (no output), the latter unless
+/// `--material-allow-outside-paths`.
+#[test]
+fn a_material_with_maps_renders_and_bad_maps_fail_cleanly() {
+    let dir = tmpdir("cuts", "maps");
+    let (sc, b) = (scene(&dir), dir.join("s.relight"));
+    let o = bake(&sc, &b, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mats = dir.join("materials");
+    std::fs::create_dir_all(&mats).unwrap();
+    // Left half (u < 0.5) black, right half white: u is the sphere's longitude.
+    let px: Vec<[u8; 3]> = (0..8 * 2)
+        .map(|i| if i % 8 < 4 { [0; 3] } else { [255; 3] })
+        .collect();
+    relight_scene::io::write_png_srgb8(&mats.join("half.png"), 8, 2, &px).unwrap();
+    let write = |name: &str, maps: &str| {
+        let p = mats.join(name);
+        let text = format!(r#"{{"type": "lambert", "albedo": [0.9, 0.9, 0.9], "maps": {maps}}}"#);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let img = dir.join("mapped.exr");
+    let good = write("good.json", r#"{"diffuse": "half.png"}"#);
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&img),
+        "--supersample",
+        "1",
+        "--material",
+        s(&good),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, _, mapped) = relight_scene::io::image::read_image(&img).unwrap();
+    let plain = dir.join("plain.exr");
+    let m = r#"{"type": "lambert", "albedo": [0.9, 0.9, 0.9]}"#;
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&plain),
+        "--supersample",
+        "1",
+        "--material",
+        m,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (_, _, plain) = relight_scene::io::image::read_image(&plain).unwrap();
+    // On the sphere (lit without maps): black where the map is, unchanged elsewhere (the
+    // map's white is 1; 1e-4 for f32 rounding of the same sums).
+    let on: Vec<_> = mapped
+        .iter()
+        .zip(&plain)
+        .filter(|(_, p)| p.x > 0.3)
+        .collect();
+    let black = on.iter().filter(|(m, _)| m.x < 1e-3).count();
+    let same = on.iter().filter(|(m, p)| (m.x - p.x).abs() < 1e-4).count();
+    assert!(
+        black > 20 && same > 20,
+        "{black} black, {same} unchanged of {}",
+        on.len()
+    );
+    let bad = dir.join("bad.exr");
+    let missing = write("missing.json", r#"{"diffuse": "nope.png"}"#);
+    let o = relight(&["render", s(&b), "-o", s(&bad), "--material", s(&missing)]);
+    assert_clean_failure(&o, "nope.png", &bad);
+    relight_scene::io::write_png_srgb8(&dir.join("up.png"), 1, 1, &[[255; 3]]).unwrap();
+    let out = write("out.json", r#"{"diffuse": "../up.png"}"#);
+    let o = relight(&["render", s(&b), "-o", s(&bad), "--material", s(&out)]);
+    assert_clean_failure(&o, "--material-allow-outside-paths", &bad);
+    let o = relight(&[
+        "render",
+        s(&b),
+        "-o",
+        s(&bad),
+        "--material",
+        s(&out),
+        "--material-allow-outside-paths",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

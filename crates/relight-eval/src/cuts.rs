@@ -216,10 +216,10 @@ fn run_scene(
             for &budget in &e.light_cuts {
                 let fs = CutsFrameSettings {
                     light_cut: budget,
-                    material: *material,
+                    material: material.map(Into::into),
                     ..Default::default()
                 };
-                let mut frame = baked.frame(&FrameSettings::Cuts(fs))?;
+                let mut frame = baked.frame(&FrameSettings::Cuts(fs.clone()))?;
                 frame.set_environment(&scene.env)?;
                 let out = frame.render(
                     &scene.camera,

@@ -28,6 +28,7 @@ use relight_render::pathtrace::{self, PtSettings};
 use relight_render::tonemap::ToneMap;
 use relight_render::Image;
 use relight_scene::camera::Camera;
+use relight_scene::material::maps::MaterialDesc;
 use relight_scene::material::Material;
 use relight_scene::scene::Scene;
 use relight_scene::scene_file::{EnvDesc, SceneDesc, ShapeDesc};
@@ -60,10 +61,13 @@ fn sky() -> EnvDesc {
     }
 }
 
-fn lambert(r: f32, g: f32, b: f32) -> Option<Material> {
-    Some(Material::Lambert {
-        albedo: Vec3::new(r, g, b),
-    })
+fn lambert(r: f32, g: f32, b: f32) -> Option<MaterialDesc> {
+    Some(
+        Material::Lambert {
+            albedo: Vec3::new(r, g, b),
+        }
+        .into(),
+    )
 }
 
 /// The camera of both scenes, `width` pixels wide.
@@ -121,10 +125,13 @@ pub fn glossy_scene(width: u32) -> SceneDesc {
                 center: [0.0, 0.7, 0.0],
                 radius: 0.7,
                 rings: Some(28),
-                material: Some(Material::GgxConductor {
-                    specular: Vec3::new(0.95, 0.78, 0.45),
-                    alpha: 0.25,
-                }),
+                material: Some(
+                    Material::GgxConductor {
+                        specular: Vec3::new(0.95, 0.78, 0.45),
+                        alpha: 0.25,
+                    }
+                    .into(),
+                ),
             },
         ],
         environment: sky(),

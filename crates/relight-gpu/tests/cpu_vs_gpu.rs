@@ -429,6 +429,7 @@ fn hybrid_case_in(settings: HybridSettings, b: Baked, scene: Scene) {
     assert_eq!(g2.stats.shadow_maps_rendered, 0);
     // ... and the kept maps and pyramids still give the CPU frame.
     let bright = Scene {
+        maps: Default::default(),
         env: brighter.clone(),
         ..scene.clone()
     };

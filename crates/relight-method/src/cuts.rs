@@ -6,7 +6,7 @@
 mod frame;
 mod store;
 
-pub use frame::{CutsFrame, CutsFrameSettings};
+pub use frame::{CutsFrame, CutsFrameSettings, MaterialOverride};
 pub use store::{load, store};
 
 use crate::store::{BakeRecord, BakedScene};

@@ -291,6 +291,35 @@ pub fn parse_material(text: &str) -> Result<relight_scene::material::Material, S
     Ok(m)
 }
 
+/// Parse `--material` of the cuts frame: inline JSON or a `.json` file holding a material,
+/// which may name texture and normal maps (loaded and checked when the frame is built,
+/// relative to the file's folder: [`cuts::MaterialOverride`]). The constant material is
+/// checked here.
+pub fn parse_material_override(text: &str) -> Result<cuts::MaterialOverride, String> {
+    let inline = text.trim_start().starts_with('{');
+    let (json, origin) = if inline {
+        (
+            text.to_string(),
+            std::path::PathBuf::from("./<inline material>"),
+        )
+    } else {
+        let path = std::path::PathBuf::from(text);
+        let bytes = relight_scene::io::files::read_file(
+            &path,
+            relight_scene::io::files::MAX_TEXT_BYTES,
+            "material file",
+        )
+        .map_err(|e| format!("not inline JSON, and {e}"))?;
+        (String::from_utf8_lossy(&bytes).into_owned(), path)
+    };
+    let desc: relight_scene::material::maps::MaterialDesc = serde_json::from_str(&json)
+        .map_err(|e| format!("{}: not a valid material: {e}", origin.display()))?;
+    desc.material
+        .validate()
+        .map_err(|e| format!("{}: {e}", origin.display()))?;
+    Ok(cuts::MaterialOverride { desc, origin })
+}
+
 /// Any bake, as read from a bundle. A closed set (one arm per [`BakeKind`]).
 // One `Baked` exists per loaded bundle (never in arrays), and its arms hold large heap data
 // either way: boxing the larger arm would buy nothing.
@@ -360,6 +389,7 @@ impl Baked {
             desc: s.desc.clone(),
             mesh: std::mem::take(&mut s.mesh),
             materials: std::mem::take(&mut s.materials),
+            maps: std::mem::take(&mut s.maps),
         }
     }
 

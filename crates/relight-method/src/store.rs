@@ -13,19 +13,24 @@
 //! * `scene`, `materials`: the scene description and the merged scene's materials.
 //!
 //! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
-//! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32). Each method adds its own,
+//! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32), and the materials' texture
+//! and normal maps, `map_<material>_<kind> [H, W, 3]` (F32 linear texels, `kind` one of
+//! `diffuse`, `specular`, `roughness`, `normal`; see `relight_scene::material::maps`). Each method adds its own,
 //! prefixed by nothing for `sh` (`albedo`, `transfer`) and by its name for the others (`sg_`,
 //! `cuts_`, `vmf_`).
 
 use crate::MethodError;
 use glam::{Vec2, Vec3};
 use relight_bundle::{Bundle, Tensor};
+use relight_scene::material::maps::{MaterialMaps, SceneMaps, MAP_KINDS};
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene_file::SceneDesc;
+use relight_scene::texture::{Texture, MAX_TEXTURE_PIXELS};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Value of the `schema` metadata key written by this version.
 pub const SCHEMA: u32 = 2;
@@ -104,6 +109,8 @@ pub struct BakedScene {
     pub mesh: TriMesh,
     /// The scene's materials, indexed by `mesh.material_ids`.
     pub materials: Vec<Material>,
+    /// Their texture and normal maps (stored as tensors `map_<material>_<kind>`).
+    pub maps: SceneMaps,
 }
 
 impl BakedScene {
@@ -113,6 +120,7 @@ impl BakedScene {
             desc: input.desc.clone(),
             mesh: input.scene.mesh.clone(),
             materials: input.scene.materials.clone(),
+            maps: input.scene.maps.clone(),
         }
     }
 
@@ -164,7 +172,64 @@ impl BakedScene {
         let idx: Vec<u32> = m.indices.iter().flatten().copied().collect();
         b.insert("indices", Tensor::from_u32(vec![t, 3], &idx));
         b.insert("material_ids", Tensor::from_u32(vec![t], &m.material_ids));
+        for i in 0..self.maps.len() {
+            let Some(maps) = self.maps.of(i as u32) else {
+                continue;
+            };
+            for (kind, tex) in MAP_KINDS.iter().zip(maps.textures()) {
+                if let Some(tex) = tex {
+                    b.insert(
+                        &format!("map_{i}_{kind}"),
+                        Tensor::from_f32(vec![tex.height(), tex.width(), 3], &flat3(tex.texels())),
+                    );
+                }
+            }
+        }
         Ok(())
+    }
+
+    /// The maps of the tensors `map_<material>_<kind>` (`[H, W, 3]` F32), each checked as a
+    /// texture is when read from a file; a map of a material that does not exist, of an
+    /// unknown kind, or on a mesh without texture coordinates is refused by name.
+    fn load_maps(
+        r: &TensorReader,
+        mesh: &TriMesh,
+        materials: usize,
+    ) -> Result<SceneMaps, MethodError> {
+        let mut per_material: Vec<Option<MaterialMaps>> = vec![None; materials];
+        for name in r.b.tensors.keys().filter(|k| k.starts_with("map_")) {
+            let parsed = name["map_".len()..].split_once('_').and_then(|(i, kind)| {
+                let i: usize = i.parse().ok()?;
+                let k = MAP_KINDS.iter().position(|&m| m == kind)?;
+                (i < materials).then_some((i, k))
+            });
+            let Some((i, k)) = parsed else {
+                return Err(r.invalid(format!(
+                    "tensor '{name}' is not a map of one of the {materials} materials (map_<material>_<{}>)",
+                    MAP_KINDS.join("|")
+                )));
+            };
+            let shape = &r.b.tensors[name].shape;
+            let &[h, w, 3] = shape.as_slice() else {
+                return Err(r.invalid(format!(
+                    "tensor '{name}' has shape {shape:?}, expected [H, W, 3]"
+                )));
+            };
+            // The texture limits, before converting (the tensor is in memory already).
+            if w.checked_mul(h).is_none_or(|n| n > MAX_TEXTURE_PIXELS) {
+                return Err(r.invalid(format!(
+                    "tensor '{name}': {w} x {h} texels exceed the texture limit"
+                )));
+            }
+            let texels = unflat3(&r.f32s(name, &[h, w, 3])?);
+            let tex = Texture::new(w, h, texels)
+                .map_err(|e| r.invalid(format!("tensor '{name}': {e}")))?;
+            *per_material[i]
+                .get_or_insert_with(MaterialMaps::default)
+                .textures_mut()[k] = Some(tex);
+        }
+        let per_material = per_material.into_iter().map(|m| m.map(Arc::new)).collect();
+        SceneMaps::new(mesh, per_material).map_err(|e| r.invalid(e))
     }
 
     /// Read and check the scene part of a bundle read from `path`.
@@ -178,10 +243,12 @@ impl BakedScene {
                 .map_err(|e| r.invalid(format!("material {m:?}: {e}")))?;
         }
         let mesh = r.mesh(materials.len())?;
+        let maps = Self::load_maps(r, &mesh, materials.len())?;
         Ok(BakedScene {
             desc,
             mesh,
             materials,
+            maps,
         })
     }
 }

@@ -13,7 +13,8 @@
 //!
 //! Materials map to Mitsuba plugins as documented on [`Material`]: `Lambert` -> `diffuse`,
 //! `GgxConductor` -> `roughconductor` (ggx, `material = "none"`), `GgxPlastic` ->
-//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong and Ward have no Mitsuba counterpart and are refused.
+//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong and Ward have no Mitsuba counterpart and are refused,
+//! as are materials with texture or normal maps (the export writes constant materials only).
 
 use crate::image::Image;
 use relight_scene::error::SceneError;
@@ -50,6 +51,13 @@ pub enum MitsubaError {
         index: usize,
         /// What is wrong with it.
         error: MaterialError,
+    },
+    /// A material in use has texture or normal maps: the export writes constant materials
+    /// only (refused rather than exported without its maps).
+    #[error("material {index} has texture or normal maps: the Mitsuba export writes constant materials only (compare a textured scene against relight's path tracer)")]
+    Textured {
+        /// Material index in the scene.
+        index: usize,
     },
     /// A material in use is a model Mitsuba 3 does not have (Blinn-Phong, Ward).
     #[error("material {index}: Mitsuba 3 has no {model} BSDF")]
@@ -118,6 +126,9 @@ pub fn export_mitsuba(
         material
             .validate()
             .map_err(|error| MitsubaError::Material { index: m, error })?;
+        if scene.maps.of(m as u32).is_some() {
+            return Err(MitsubaError::Textured { index: m });
+        }
         let bsdf =
             bsdf_json(material).map_err(|model| MitsubaError::Unsupported { index: m, model })?;
         let name = format!("shape_{m}.ply");
@@ -339,6 +350,7 @@ mod tests {
         let ground = ground_plane(Vec3::ZERO, 6.0, 2);
         mesh.append(&ground, 2);
         let scene = Scene {
+            maps: Default::default(),
             mesh,
             materials: vec![
                 Material::Lambert {
@@ -380,6 +392,20 @@ mod tests {
         let (w, h, px) = relight_scene::io::image::read_exr(&dir.join("env.exr")).unwrap();
         assert_eq!((w, h), (scene.env.map.width(), scene.env.map.height()));
         assert!(px.iter().all(|p| *p == Vec3::ONE));
+        // A textured material is refused by name, not exported without its maps.
+        let mut textured = scene.clone();
+        let maps = relight_scene::material::maps::MaterialMaps {
+            diffuse: Some(relight_scene::texture::Texture::constant(Vec3::splat(0.5)).unwrap()),
+            ..Default::default()
+        };
+        textured.maps = relight_scene::material::maps::SceneMaps::new(
+            &textured.mesh,
+            vec![None, None, Some(std::sync::Arc::new(maps))],
+        )
+        .unwrap();
+        let e = export_mitsuba(&textured, &dir, 16, 3).unwrap_err();
+        assert!(matches!(e, MitsubaError::Textured { index: 2 }), "{e:?}");
+        assert!(e.to_string().contains("texture or normal maps"), "{e}");
         // Blinn-Phong in use is refused.
         let mut bp = scene.clone();
         bp.mesh.material_ids.iter_mut().for_each(|m| *m = 1);

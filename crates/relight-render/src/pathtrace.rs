@@ -11,7 +11,8 @@
 //! * Pixel `(x, y)` averages `spp` radiance samples through uniformly jittered points of the
 //!   pixel square (a box filter of one pixel, Mitsuba's `<rfilter type="box"/>`).
 //! * Materials are one-sided and are evaluated in the shading frame of the interpolated vertex
-//!   normal. A direction (towards the viewer or the light) whose side of the *geometric* normal
+//!   normal, or of the normal map's normal; texture maps set the material's parameters at the
+//!   hit (`relight_scene::material::maps::shading_at`, shared with the cuts renderer). A direction (towards the viewer or the light) whose side of the *geometric* normal
 //!   disagrees with its side of the shading normal ends the path / contributes nothing (no
 //!   light leaks through shading-normal interpolation).
 //! * The environment is visible to camera rays when `show_background` (Mitsuba's
@@ -210,18 +211,21 @@ impl Ctx<'_> {
             let tri = hit.tri as usize;
             let p = ray.at(hit.t);
             let ng = mesh.geometric_normal(tri);
-            let material: Material = match mesh
+            // The material and frame at the hit, texture and normal maps applied: the lookup
+            // the cuts renderer shares (`relight_scene::material::maps::shading_at`).
+            let n = mesh.shading_normal(tri, hit.u, hit.v);
+            let valid = mesh
                 .material_ids
                 .get(tri)
-                .and_then(|&m| self.scene.materials.get(m as usize))
-            {
-                Some(m) => *m,
-                None => {
-                    debug_assert!(false, "triangle {tri} has no valid material");
-                    Material::default()
-                }
+                .is_some_and(|&m| (m as usize) < self.scene.materials.len());
+            let (material, shading) = if valid {
+                self.scene
+                    .shading_at(hit.tri, [1.0 - hit.u - hit.v, hit.u, hit.v], n)
+            } else {
+                debug_assert!(false, "triangle {tri} has no valid material");
+                let m = Material::default();
+                (m, m.shading_frame(n))
             };
-            let shading = material.shading_frame(mesh.shading_normal(tri, hit.u, hit.v));
             let wi_world = -ray.dir.normalize();
             let wi = shading.to_local(wi_world);
             // One-sided materials see nothing from below; reject inconsistent sides.
@@ -291,6 +295,7 @@ mod tests {
         let mut mesh = uv_sphere(Vec3::ZERO, 1.0, 24, 48);
         mesh.material_ids = vec![0; mesh.indices.len()];
         Scene {
+            maps: Default::default(),
             mesh,
             materials: vec![material],
             env: Environment::new(env),

@@ -934,6 +934,7 @@ mod tests {
         let map = EnvMap::latlong_from_fn(128, 65, f);
         let camera = Camera::look_at([3.0, 2.5, 4.0], [0.0, 0.8, 0.0], 40.0, 64, 48);
         let scene = relight_scene::scene::Scene {
+            maps: Default::default(),
             mesh: mesh.clone(),
             materials: mats.clone(),
             env: Environment::new(map.clone()),

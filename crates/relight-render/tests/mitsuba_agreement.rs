@@ -59,6 +59,7 @@ fn camera(origin: [f32; 3], target: [f32; 3], fov: f32, size: u32) -> Camera {
 /// One sphere at the origin seen from +Z.
 fn sphere_scene(material: Material, env: EnvMap, size: u32) -> Scene {
     Scene {
+        maps: Default::default(),
         mesh: sphere(Vec3::ZERO, 1.0, 0),
         materials: vec![material],
         env: Environment::new(env),
@@ -78,6 +79,7 @@ fn sphere_on_ground(
     ground.material_ids = vec![1; ground.indices.len()];
     mesh.append(&ground, 0);
     Scene {
+        maps: Default::default(),
         mesh,
         materials: vec![sphere_mat, ground_mat],
         env,

@@ -26,6 +26,7 @@
 //!   ([`Material::shading_frame`]); sampled by mixing a cosine lobe and Walter 2005's
 //!   half-vector lobe, weighted as Blinn-Phong's.
 
+pub mod maps;
 pub mod microfacet;
 pub mod ward;
 

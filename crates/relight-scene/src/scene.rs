@@ -1,10 +1,12 @@
 //! A scene in memory: one merged triangle mesh, its materials, the environment and a camera.
 
 use crate::camera::Camera;
+use crate::material::maps::{self, SceneMaps};
 use crate::material::Material;
 use crate::mesh::TriMesh;
 use crate::{Mat3, Vec3};
 use relight_sphere::envmap::EnvMap;
+use relight_sphere::warp::Frame;
 
 /// Distant environment lighting: an environment map, a scale and a rotation about +Y.
 ///
@@ -53,10 +55,21 @@ impl Environment {
 pub struct Scene {
     /// All shapes merged into one mesh (`material_ids` index `materials`).
     pub mesh: TriMesh,
-    /// Materials.
+    /// Materials (their constant parameters).
     pub materials: Vec<Material>,
+    /// The materials' texture and normal maps (`SceneMaps::default()`: none).
+    pub maps: SceneMaps,
     /// Distant lighting.
     pub env: Environment,
     /// The camera.
     pub camera: Camera,
+}
+
+impl Scene {
+    /// The material and shading frame at barycentrics `bary` of triangle `tri`, whose
+    /// interpolated shading normal is `n` ([`maps::shading_at`]).
+    #[inline]
+    pub fn shading_at(&self, tri: u32, bary: [f32; 3], n: Vec3) -> (Material, Frame) {
+        maps::shading_at(&self.mesh, &self.materials, &self.maps, tri, bary, n)
+    }
 }

@@ -16,7 +16,12 @@
 //! ```
 //!
 //! A shape without `material` keeps the materials of its file (OBJ/MTL, glTF) or gets the
-//! default (Lambert 0.8). Environments: `file` (any layout relight reads, optional
+//! default (Lambert 0.8). A shape's material may name texture and normal maps in the same
+//! object ([`MaterialDesc`]; what each map does: [`crate::material::maps`]):
+//! `"material": {"type": "ggx_plastic", "diffuse": [1, 1, 1], "specular": [1, 1, 1],
+//! "alpha": 0.2, "ior": 1.5, "maps": {"diffuse": "albedo.png", "roughness": "r.exr",
+//! "normal": "n.png"}}`; the shape needs texture coordinates (spheres and planes have
+//! them, a mesh file must). Environments: `file` (any layout relight reads, optional
 //! `"layout"`: `latlong`, `cube`, `probe`), `sky` (procedural sun and sky) or `constant`
 //! (`"radiance": [r, g, b]`).
 //!
@@ -26,6 +31,8 @@
 //! `../../shared/data/...`). The files themselves must be regular files within the size caps,
 //! and the references *inside* a model (glTF buffers, OBJ `mtllib`) may not leave the model's
 //! folder unless [`LoadOptions::paths`] allows it: the rules are in [`crate::io::files`].
+//! Material maps count as such references of the scene file: resolved against its folder
+//! and refused outside it unless [`LoadOptions::paths`] allows it (`--allow-outside-paths`).
 //!
 //! # Checks
 //! A description is checked when read ([`SceneDesc::from_json`], [`SceneDesc::read`]) and
@@ -48,6 +55,7 @@
 use crate::camera::Camera;
 use crate::error::{Location, SceneError};
 use crate::io::files::{self, LoadOptions};
+use crate::material::maps::{MaterialDesc, MaterialMaps, SceneMaps};
 use crate::material::Material;
 use crate::mesh::{TriMesh, MAX_COORDINATE};
 use crate::scene::{Environment, Scene};
@@ -95,7 +103,7 @@ pub enum ShapeDesc {
         weld: Option<f32>,
         /// Override of the file's materials.
         #[serde(default)]
-        material: Option<Material>,
+        material: Option<MaterialDesc>,
         /// Levels of midpoint subdivision after loading (1 to
         /// [`meshops::MAX_SUBDIVISION`]; each multiplies the triangles by 4): a dense mesh
         /// from a shared one (the 1M-vertex bake of docs/RESULTS.md).
@@ -114,7 +122,7 @@ pub enum ShapeDesc {
         rings: Option<u32>,
         /// Material.
         #[serde(default)]
-        material: Option<Material>,
+        material: Option<MaterialDesc>,
     },
     /// A square facing +Y.
     Plane {
@@ -127,7 +135,7 @@ pub enum ShapeDesc {
         divisions: Option<u32>,
         /// Material.
         #[serde(default)]
-        material: Option<Material>,
+        material: Option<MaterialDesc>,
     },
     /// A small table (a top slab on four legs) standing on y = 0, centred on the Y axis.
     Table {
@@ -139,7 +147,7 @@ pub enum ShapeDesc {
         height: f32,
         /// Material.
         #[serde(default)]
-        material: Option<Material>,
+        material: Option<MaterialDesc>,
     },
     /// An axis-aligned box.
     Box {
@@ -149,7 +157,7 @@ pub enum ShapeDesc {
         max: [f32; 3],
         /// Material.
         #[serde(default)]
-        material: Option<Material>,
+        material: Option<MaterialDesc>,
     },
 }
 
@@ -303,6 +311,7 @@ impl SceneDesc {
         let limit = opts.max_triangles as u64;
         let mut mesh = TriMesh::default();
         let mut materials: Vec<Material> = Vec::new();
+        let mut maps = Vec::new();
         for (i, s) in self.shapes.iter().enumerate() {
             let others = mesh.triangle_count() as u64;
             if let Some(n) = s.triangle_count() {
@@ -342,9 +351,26 @@ impl SceneDesc {
                 m.validate()
                     .map_err(|e| SceneError::malformed(origin, format!("material: {e}")))?;
             }
+            match s.maps() {
+                Some(desc) => {
+                    let at = |m: String| {
+                        SceneError::malformed(origin, format!("{}: {m}", shape_label(i, s)))
+                    };
+                    if part.uvs.is_none() {
+                        return Err(at(format!(
+                            "material maps on {}, which has no texture coordinates (uvs)",
+                            shape_origin(s).display()
+                        )));
+                    }
+                    let loaded = MaterialMaps::load(desc, &mats[0], origin, &opts.paths)?;
+                    maps.push(Some(std::sync::Arc::new(loaded)));
+                }
+                None => maps.extend(mats.iter().map(|_| None)),
+            }
             mesh.append(&part, materials.len() as u32);
             materials.extend(mats);
         }
+        let maps = SceneMaps::new(&mesh, maps).map_err(|m| SceneError::malformed(origin, m))?;
         if let Some((lo, hi)) = mesh.bounds() {
             let extent = lo.abs().max(hi.abs()).max_element();
             if extent > MAX_COORDINATE {
@@ -358,6 +384,7 @@ impl SceneDesc {
         Ok(Scene {
             mesh,
             materials,
+            maps,
             env,
             camera: self.camera,
         })
@@ -433,9 +460,9 @@ fn check_count(name: &str, v: Option<u32>, range: RangeInclusive<u32>) -> Result
     }
 }
 
-fn check_material(m: &Option<Material>) -> Result<(), String> {
+fn check_material(m: &Option<MaterialDesc>) -> Result<(), String> {
     match m {
-        Some(m) => m.validate().map_err(|e| format!("material: {e}")),
+        Some(m) => m.material.validate().map_err(|e| format!("material: {e}")),
         None => Ok(()),
     }
 }
@@ -515,6 +542,18 @@ impl ShapeDesc {
                 check_material(material)
             }
         }
+    }
+
+    /// The maps the shape's material names, if any (a shape with maps has one material).
+    pub fn maps(&self) -> Option<&crate::material::maps::MapsDesc> {
+        let m = match self {
+            ShapeDesc::Mesh { material, .. }
+            | ShapeDesc::Sphere { material, .. }
+            | ShapeDesc::Plane { material, .. }
+            | ShapeDesc::Table { material, .. }
+            | ShapeDesc::Box { material, .. } => material,
+        };
+        m.as_ref()?.maps.as_ref()
     }
 
     /// Triangles the shape generates, known before generating it (`None` for a mesh file).
@@ -603,7 +642,8 @@ impl EnvDesc {
 
 /// Build one shape (already validated); mesh files are loaded with `opts`.
 fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Material>), SceneError> {
-    let one = |m: &Option<Material>| vec![m.unwrap_or_default()];
+    let one =
+        |m: &Option<MaterialDesc>| vec![m.as_ref().map_or_else(Material::default, |d| d.material)];
     Ok(match s {
         ShapeDesc::Mesh {
             file,
@@ -651,7 +691,7 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
             let mats = match material {
                 Some(m) => {
                     mesh.material_ids.iter_mut().for_each(|id| *id = 0);
-                    vec![*m]
+                    vec![m.material]
                 }
                 None if loaded.materials.is_empty() => {
                     mesh.material_ids.iter_mut().for_each(|id| *id = 0);

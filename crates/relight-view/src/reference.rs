@@ -92,6 +92,7 @@ impl Reference {
             .name("relight-view reference".into())
             .spawn(move || {
                 let scene = Scene {
+                    maps: Default::default(),
                     mesh,
                     materials,
                     env,

@@ -8,12 +8,38 @@ use relight_bake::cuts::samples::sample_power;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
 use relight_scene::camera::Camera;
-use relight_scene::material::Material;
+use relight_scene::error::SceneError;
+use relight_scene::io::PathPolicy;
+use relight_scene::material::maps::{MaterialDesc, MaterialMaps, SceneMaps};
 use relight_scene::scene::Environment;
+use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
+/// A material that replaces the scene's at render time (`--material`): the constant material
+/// with optional maps ([`MaterialDesc`]), and the JSON file it came from, against whose
+/// folder relative map paths are resolved (and which they may not leave unless
+/// [`CutsFrameSettings::material_allow_outside_paths`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialOverride {
+    /// The material and the maps it names.
+    pub desc: MaterialDesc,
+    /// The file the material was read from (inline JSON: `./<inline material>`, so maps
+    /// resolve against the working folder).
+    pub origin: PathBuf,
+}
+
+impl From<relight_scene::material::Material> for MaterialOverride {
+    fn from(m: relight_scene::material::Material) -> Self {
+        MaterialOverride {
+            desc: m.into(),
+            origin: PathBuf::from("./<inline material>"),
+        }
+    }
+}
+
 /// Settings of the `cuts` frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
 #[cfg_attr(
     feature = "cli",
@@ -26,11 +52,18 @@ pub struct CutsFrameSettings {
     /// `sigma` of the illumination cut's error phase, in units of the mean light (>= 0).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_LIGHT_SIGMA))]
     pub light_sigma: f32,
-    /// Render every surface with this material instead of the scene's (nothing of the
-    /// materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
-    /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one.
-    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = crate::parse_material))]
-    pub material: Option<Material>,
+    /// Render every surface with this material instead of the scene's (and its maps, which
+    /// the bundle holds; nothing of the materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
+    /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one. It may name texture
+    /// and normal maps ("maps": {"diffuse": "albedo.png", "normal": "n.png"}, paths relative
+    /// to the file's folder, which they may not leave); the bake's mesh needs texture
+    /// coordinates then.
+    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = crate::parse_material_override))]
+    pub material: Option<MaterialOverride>,
+    /// Let the maps of `--material` lead outside the material file's folder (absolute paths,
+    /// `..`, symbolic links out of it).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub material_allow_outside_paths: bool,
     /// Average each glossy BRDF over the spread of every merged cluster's lights (five
     /// evaluations per wide cluster) instead of evaluating it at the cluster's direction
     /// alone: slower, and closer to the reference at large light cuts (docs/RESULTS.md §11).
@@ -45,6 +78,7 @@ impl Default for CutsFrameSettings {
             light_cut: 256,
             light_sigma: DEFAULT_LIGHT_SIGMA,
             material: None,
+            material_allow_outside_paths: false,
             cluster_spread: false,
         }
     }
@@ -62,16 +96,45 @@ impl<'a> CutsFrame<'a> {
     /// A frame over `baked` (a whole bake).
     ///
     /// # Errors
-    /// [`MethodError::Settings`] for a light cut of 0 nodes, a bad sigma or an invalid
-    /// material.
+    /// [`MethodError::Settings`] for a light cut of 0 nodes, a bad sigma, an invalid
+    /// material, or maps that cannot be read (the message names the file and the problem) or
+    /// applied (a mesh without texture coordinates).
     pub fn new(baked: &'a CutsBaked, s: &CutsFrameSettings) -> Result<Self, MethodError> {
-        if let Some(m) = &s.material {
-            m.validate()
-                .map_err(|e| MethodError::Settings(format!("material {m:?}: {e}")))?;
-        }
-        let materials = match s.material {
-            Some(m) => vec![m; baked.scene.materials.len()],
-            None => baked.scene.materials.clone(),
+        let n = baked.scene.materials.len();
+        let (materials, maps) = match &s.material {
+            Some(o) => {
+                let m = o.desc.material;
+                m.validate()
+                    .map_err(|e| MethodError::Settings(format!("material {m:?}: {e}")))?;
+                let maps = match &o.desc.maps {
+                    None => SceneMaps::default(),
+                    Some(d) => {
+                        let policy = PathPolicy {
+                            allow_outside: s.material_allow_outside_paths,
+                        };
+                        let loaded =
+                            MaterialMaps::load(d, &m, &o.origin, &policy).map_err(|e| {
+                                let hint = match e {
+                                    SceneError::OutsideFolder { .. } => {
+                                        " (for the maps of --material: --material-allow-outside-paths)"
+                                    }
+                                    _ => "",
+                                };
+                                MethodError::Settings(format!("--material: {e}{hint}"))
+                            })?;
+                        SceneMaps::new(&baked.scene.mesh, vec![Some(Arc::new(loaded)); n]).map_err(
+                            |e| {
+                                MethodError::Settings(format!(
+                                    "--material {}: {e}",
+                                    o.origin.display()
+                                ))
+                            },
+                        )?
+                    }
+                };
+                (vec![m; n], maps)
+            }
+            None => (baked.scene.materials.clone(), baked.scene.maps.clone()),
         };
         if s.light_cut == 0 || !(s.light_sigma.is_finite() && s.light_sigma >= 0.0) {
             return Err(MethodError::Settings(format!(
@@ -87,8 +150,9 @@ impl<'a> CutsFrame<'a> {
                 &baked.bake,
                 baked.settings.function,
             )
+            .with_maps(maps)
             .with_cluster_spread(s.cluster_spread),
-            settings: *s,
+            settings: s.clone(),
             lighting: None,
         })
     }

@@ -4,6 +4,7 @@
 use super::*;
 use crate::test_scene::with_input;
 use crate::MethodError;
+use crate::{Baked, FrameOptions, FrameSettings};
 use relight_bake::cuts::bake_range;
 use relight_bundle::{Bundle, DType, Tensor};
 use relight_scene::accel::{build, Backend};
@@ -163,7 +164,7 @@ fn corruptions_are_refused_by_name() {
 
 #[test]
 fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
-    use crate::{Baked, FrameOptions, FrameSettings, MethodKind};
+    use crate::MethodKind;
     // The test scene's sphere sits on a plane; a lone sphere is convex: its cuts see the
     // whole upper hemisphere of every vertex.
     let b = baked(false, None);
@@ -209,4 +210,204 @@ fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
         ..Default::default()
     });
     assert!(whole.frame(&bad).is_err());
+}
+
+/// `--material` with maps: read from the material file's folder, applied to the whole bake
+/// (a checker darkens some pixels, brightening none), refused by name when a map is missing,
+/// leaves the folder (unless allowed), or the bake's mesh has no texture coordinates.
+#[test]
+fn a_material_override_with_maps_renders_and_bad_maps_are_refused() {
+    let whole: Baked = baked(false, None).into();
+    let root = std::env::temp_dir().join(format!("relight-cuts-maps-{}", std::process::id()));
+    let dir = root.join("materials");
+    std::fs::create_dir_all(&dir).unwrap();
+    let checker: Vec<[u8; 3]> = (0..16)
+        .map(|i| {
+            if (i % 4 + i / 4) % 2 == 0 {
+                [255; 3]
+            } else {
+                [0; 3]
+            }
+        })
+        .collect();
+    relight_scene::io::write_png_srgb8(&dir.join("checker.png"), 4, 4, &checker).unwrap();
+    relight_scene::io::write_png_srgb8(&root.join("up.png"), 1, 1, &[[255; 3]]).unwrap();
+    let write = |name: &str, maps: &str| {
+        let p = dir.join(name);
+        std::fs::write(
+            &p,
+            format!(r#"{{"type": "lambert", "albedo": [0.8, 0.8, 0.8], "maps": {maps}}}"#),
+        )
+        .unwrap();
+        crate::parse_material_override(p.to_str().unwrap()).unwrap()
+    };
+    let settings = |m: Option<MaterialOverride>, outside: bool| {
+        FrameSettings::Cuts(CutsFrameSettings {
+            material: m,
+            material_allow_outside_paths: outside,
+            ..Default::default()
+        })
+    };
+    let env =
+        relight_scene::scene::Environment::new(relight_sphere::EnvMap::constant(glam::Vec3::ONE));
+    let camera = whole.scene().desc.camera;
+    let render = |s: &FrameSettings| {
+        let mut frame = whole.frame(s).unwrap();
+        frame.set_environment(&env).unwrap();
+        frame.render(&camera, &FrameOptions::default()).image
+    };
+    let plain = render(&settings(
+        Some(
+            relight_scene::material::Material::Lambert {
+                albedo: glam::Vec3::splat(0.8),
+            }
+            .into(),
+        ),
+        false,
+    ));
+    let mapped = render(&settings(
+        Some(write("m.json", r#"{"diffuse": "checker.png"}"#)),
+        false,
+    ));
+    let (mut darker, mut brighter) = (0, 0);
+    for (a, b) in mapped.pixels.iter().zip(&plain.pixels) {
+        darker += (a.x < 0.5 * b.x) as usize;
+        // The map multiplies by at most 1 (f32 rounding of the same sum).
+        brighter += (a.x > b.x * 1.0001 + 1e-6) as usize;
+    }
+    assert!(
+        darker > 20 && brighter == 0,
+        "{darker} darker, {brighter} brighter"
+    );
+    // Bad maps: each refused naming the problem.
+    let err = |m: MaterialOverride, outside: bool| match whole.frame(&settings(Some(m), outside)) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e.to_string(),
+    };
+    let e = err(write("missing.json", r#"{"diffuse": "nope.png"}"#), false);
+    assert!(e.contains("nope.png"), "{e}");
+    let e = err(write("out.json", r#"{"diffuse": "../up.png"}"#), false);
+    assert!(e.contains("up.png") && e.contains("outside"), "{e}");
+    assert!(whole
+        .frame(&settings(
+            Some(write("out2.json", r#"{"diffuse": "../up.png"}"#)),
+            true
+        ))
+        .is_ok());
+    // The same bake without texture coordinates.
+    let mut bare = baked(false, None);
+    bare.scene.mesh.uvs = None;
+    let bare: Baked = bare.into();
+    let m = write("m2.json", r#"{"diffuse": "checker.png"}"#);
+    let e = match bare.frame(&settings(Some(m), false)) {
+        Ok(_) => panic!("accepted a map on a mesh without uvs"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("no texture coordinates"), "{e}");
+}
+
+/// A bake of a scene whose sphere has a diffuse map: the bundle holds the map
+/// (`map_0_diffuse`), a round trip gives it back texel for texel, the frame renders it
+/// without `--material`, and damaged map tensors are refused by name.
+#[test]
+fn maps_travel_in_the_bundle_and_damaged_maps_are_refused() {
+    let dir = std::env::temp_dir().join(format!("relight-cuts-bundle-maps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let checker: Vec<[u8; 3]> = (0..16)
+        .map(|i| {
+            if (i % 4 + i / 4) % 2 == 0 {
+                [255; 3]
+            } else {
+                [0; 3]
+            }
+        })
+        .collect();
+    relight_scene::io::write_png_srgb8(&dir.join("checker.png"), 4, 4, &checker).unwrap();
+    let text = crate::test_scene::desc(0.5);
+    let mut d = text.clone();
+    let relight_scene::scene_file::ShapeDesc::Sphere { material, .. } = &mut d.shapes[0] else {
+        panic!("the test scene starts with a sphere")
+    };
+    material.as_mut().unwrap().maps = Some(relight_scene::material::maps::MapsDesc {
+        diffuse: Some("checker.png".into()),
+        ..Default::default()
+    });
+    let origin = dir.join("scene.json");
+    let scene = d.build(&origin).unwrap();
+    let input = crate::BakeInput {
+        desc: &d,
+        scene: &scene,
+        origin: &origin,
+    };
+    let caster = build(&scene.mesh, Backend::Bvh).unwrap();
+    let settings = CutsBakeSettings {
+        lights: 512,
+        seed: 2,
+        ..Default::default()
+    };
+    let n = scene.mesh.vertex_count();
+    let b = CutsBaked {
+        scene: BakedScene::of(&input),
+        bake: bake_range(&scene.mesh, caster.as_ref(), &settings, 0..n).unwrap(),
+        settings,
+        record: BakeRecord::new("bvh", 0.0, false, &(0..n), n),
+    };
+    assert!(store(&b).unwrap().tensors.contains_key("map_0_diffuse"));
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.scene.maps.of(0), b.scene.maps.of(0));
+    assert!(back.scene.maps.of(0).is_some() && back.scene.maps.of(1).is_none());
+    // The frame uses the bundle's maps: some sphere pixels black (the checker's black
+    // squares), which the constant albedo (0.8, 0.3, 0.2) never gives on a lit sphere.
+    let whole: Baked = back.into();
+    let mut frame = whole
+        .frame(&FrameSettings::default_for(crate::MethodKind::Cuts))
+        .unwrap();
+    let env =
+        relight_scene::scene::Environment::new(relight_sphere::EnvMap::constant(glam::Vec3::ONE));
+    frame.set_environment(&env).unwrap();
+    let img = frame.render(&d.camera, &FrameOptions::default()).image;
+    let black_red = img
+        .pixels
+        .iter()
+        .filter(|p| p.x < 1e-3 && p.y > 0.05)
+        .count();
+    let black = img.pixels.iter().filter(|p| p.max_element() < 1e-3).count();
+    assert!(black > 5 && black_red == 0, "{black} black pixels");
+    // Damaged maps.
+    let map = |shape: Vec<usize>, v: f32| {
+        Tensor::from_f32(shape.clone(), &vec![v; shape.iter().product()])
+    };
+    for (what, f, want) in [
+        (
+            "texel out of range",
+            ("map_0_diffuse", map(vec![2, 2, 3], 2.0)),
+            "texel (0, 0)",
+        ),
+        (
+            "material out of range",
+            ("map_7_diffuse", map(vec![1, 1, 3], 0.5)),
+            "map_7_diffuse",
+        ),
+        (
+            "unknown kind",
+            ("map_0_bump", map(vec![1, 1, 3], 0.5)),
+            "map_0_bump",
+        ),
+        (
+            "bad shape",
+            ("map_0_normal", map(vec![4, 3], 0.5)),
+            "expected [H, W, 3]",
+        ),
+    ] {
+        let (name, t) = f;
+        let msg = corrupt(&b, |x| {
+            x.insert(name, t);
+        });
+        assert!(msg.contains(want), "{what}: {msg}");
+    }
+    // A map on a mesh without texture coordinates.
+    let msg = corrupt(&b, |x| {
+        x.tensors.remove("uvs");
+    });
+    assert!(msg.contains("no texture coordinates"), "{msg}");
 }

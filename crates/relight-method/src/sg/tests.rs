@@ -85,6 +85,7 @@ fn baked(f16: bool) -> SgBaked {
             desc: scene(),
             mesh,
             materials: vec![PLASTIC],
+            maps: Default::default(),
         },
         bake: SgBake {
             view_frequency: 3,

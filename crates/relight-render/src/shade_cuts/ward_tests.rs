@@ -24,7 +24,7 @@ fn ward(tangent: Vec3) -> Material {
 
 /// A smooth sky with one broad bright region (a source the anisotropic highlight stretches
 /// visibly, yet resolved by a few thousand light samples).
-fn sky(d: Vec3) -> Vec3 {
+pub(super) fn sky(d: Vec3) -> Vec3 {
     let sun = Vec3::new(0.5, 0.6, 0.62).normalize();
     let glow = 6.0 * (12.0 * (d.dot(sun) - 1.0)).exp();
     Vec3::new(0.35, 0.42, 0.55) * (0.6 + 0.4 * d.y.max(0.0)) + Vec3::new(1.0, 0.9, 0.7) * glow
@@ -33,7 +33,7 @@ fn sky(d: Vec3) -> Vec3 {
 /// Relative RMSE of the bias of `img` against the path tracer `pt` over `mask`: the path
 /// tracer's variance of the mean removed from the squared error, so what is left is the
 /// method's error, not the reference's noise.
-fn bias(img: &Image, pt: &Image, var: &Image, mask: &[bool]) -> f64 {
+pub(super) fn bias(img: &Image, pt: &Image, var: &Image, mask: &[bool]) -> f64 {
     let m = crate::compare::metrics(img, pt, Some(mask));
     let noise2 = var
         .pixels
@@ -75,6 +75,7 @@ fn ward_chosen_after_the_bake_matches_the_path_tracer_and_follows_its_tangent() 
         let shader = CutsShader::new(&mesh, materials.clone(), &bake, CutFunction::Visibility);
         let r = shader.render(&light, &camera, None, &RasterOptions { supersample: 2 });
         let scene = Scene {
+            maps: Default::default(),
             mesh: mesh.clone(),
             materials,
             env: env.clone(),

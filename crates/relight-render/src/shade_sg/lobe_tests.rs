@@ -33,6 +33,7 @@ fn scene() -> Scene {
         })
     });
     Scene {
+        maps: Default::default(),
         mesh,
         materials: vec![
             Material::GgxConductor {

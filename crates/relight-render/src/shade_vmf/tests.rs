@@ -58,6 +58,7 @@ fn glossy_scene(width: u32, height: u32) -> Scene {
     plane.material_ids = vec![0; plane.indices.len()];
     mesh.append(&plane, 1);
     Scene {
+        maps: Default::default(),
         mesh,
         materials: vec![
             Material::BlinnPhong {

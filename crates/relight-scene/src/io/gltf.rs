@@ -2,7 +2,8 @@
 //!
 //! Read: the default scene's node tree (`matrix` or TRS, composed parent-to-child), mesh
 //! primitives in modes TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (others are skipped with a
-//! warning), attributes `POSITION`, `NORMAL`, `TEXCOORD_0` (float or normalised integers),
+//! warning), attributes `POSITION`, `NORMAL`, `TEXCOORD_0` (float or normalised integers;
+//! `v` flipped to `1 - v`, OBJ's upward convention, which [`crate::texture`] follows),
 //! indices (u8, u16, u32) and `pbrMetallicRoughness` factors (textures are ignored).
 //! Positions are transformed by the node's world matrix, normals by its inverse transpose;
 //! a mirroring matrix flips the winding. A primitive without normals gets angle-weighted
@@ -588,7 +589,8 @@ impl Reader<'_> {
                     uv.len()
                 )));
             }
-            part.uvs = Some(uv.into_iter().map(Vec2::from).collect());
+            // glTF's v grows downwards from the image's top; relight's (OBJ's) upwards.
+            part.uvs = Some(uv.into_iter().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect());
         }
         part.normals = match p.attributes.get("NORMAL") {
             Some(&a) => {
@@ -836,7 +838,8 @@ mod tests {
             .normals
             .iter()
             .all(|n| (*n - Vec3::Z).length() < 1e-6));
-        assert_eq!(m.mesh.uvs.as_ref().unwrap()[2], Vec2::new(1.0, 1.0));
+        // TEXCOORD_0 (1, 1), v flipped to OBJ's upward convention.
+        assert_eq!(m.mesh.uvs.as_ref().unwrap()[2], Vec2::new(1.0, 0.0));
         assert_eq!(
             m.materials,
             vec![Material::GgxPlastic {

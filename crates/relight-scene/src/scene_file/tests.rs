@@ -249,8 +249,17 @@ fn example_scenes_read_and_build() {
             _ => true,
         };
         let is_small = !p.to_string_lossy().contains("armadillo");
+        // Maps are confined to the scene's folder like a model's references; the textured
+        // example names the shared data's texture, so it is built as with
+        // `--allow-outside-paths`.
+        let opts = LoadOptions {
+            paths: files::PathPolicy {
+                allow_outside: d.shapes.iter().any(|s| s.maps().is_some()),
+            },
+            ..LoadOptions::default()
+        };
         if files_present && is_small {
-            let s = d.build(&p).unwrap_or_else(|e| panic!("{e}"));
+            let s = d.build_with(&p, &opts).unwrap_or_else(|e| panic!("{e}"));
             assert!(s.mesh.triangle_count() > 0);
         } else {
             eprintln!("SKIP building {}: data absent or large", p.display());

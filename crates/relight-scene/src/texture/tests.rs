@@ -1,0 +1,209 @@
+use super::*;
+use crate::io::test_util::temp_dir;
+use std::path::PathBuf;
+
+/// Write an 8-bit PNG of `channels` (1 grey, 3 RGB) samples per texel.
+pub(crate) fn write_png(path: &Path, w: u32, h: u32, channels: usize, data: &[u8]) {
+    let file = std::fs::File::create(path).unwrap();
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(if channels == 1 {
+        png::ColorType::Grayscale
+    } else {
+        png::ColorType::Rgb
+    });
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header().unwrap().write_image_data(data).unwrap();
+}
+
+/// Write a float RGB OpenEXR without relight's writer (which refuses NaN).
+pub(crate) fn write_exr_raw(path: &Path, w: usize, h: usize, px: &[Vec3]) {
+    exr::prelude::write_rgb_file(path, w, h, |x, y| {
+        let p = px[y * w + x];
+        (p.x, p.y, p.z)
+    })
+    .unwrap();
+}
+
+#[test]
+fn srgb_decode_matches_the_standard_curve() {
+    assert_eq!(srgb_to_linear(0.0), 0.0);
+    assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+    // Reference values of IEC 61966-2-1 (computed in double precision).
+    assert!((srgb_to_linear(0.5) - 0.214_041_14).abs() < 1e-6);
+    assert!((srgb_to_linear(0.02) - 0.02 / 12.92).abs() < 1e-9);
+    // The two pieces meet at 0.04045 (continuity to 1e-6).
+    let (a, b) = (srgb_to_linear(0.040_45), srgb_to_linear(0.040_450_1));
+    assert!((a - b).abs() < 1e-6, "{a} {b}");
+    // Monotonic over the 8-bit codes.
+    for k in 1..=255 {
+        assert!(srgb_to_linear(k as f32 / 255.0) > srgb_to_linear((k - 1) as f32 / 255.0));
+    }
+}
+
+#[test]
+fn png_colour_maps_are_srgb_decoded_and_data_maps_are_not() {
+    let dir = temp_dir("tex-png");
+    let p = dir.join("grey.png");
+    write_png(&p, 2, 1, 3, &[128, 64, 255, 0, 10, 200]);
+    let c = Texture::read(&p, Encoding::Colour).unwrap();
+    let d = Texture::read(&p, Encoding::Data).unwrap();
+    let s = |v: u8| srgb_to_linear(v as f32 / 255.0);
+    assert_eq!(c.texel(0, 0), Vec3::new(s(128), s(64), s(255)));
+    assert_eq!(c.texel(1, 0), Vec3::new(s(0), s(10), s(200)));
+    assert_eq!(d.texel(0, 0), Vec3::new(128.0, 64.0, 255.0) / 255.0);
+    // Grey PNGs give three equal channels.
+    let g = dir.join("g.png");
+    write_png(&g, 1, 1, 1, &[51]);
+    assert_eq!(
+        Texture::read(&g, Encoding::Data).unwrap().texel(0, 0),
+        Vec3::splat(0.2)
+    );
+    // EXR is linear whatever the map.
+    let e = dir.join("e.exr");
+    write_exr_raw(&e, 1, 1, &[Vec3::new(0.25, 0.5, 0.75)]);
+    for enc in [Encoding::Colour, Encoding::Data] {
+        assert_eq!(
+            Texture::read(&e, enc).unwrap().texel(0, 0),
+            Vec3::new(0.25, 0.5, 0.75)
+        );
+    }
+}
+
+/// A 4 x 3 texture of distinct texels.
+fn ramp() -> Texture {
+    let px = (0..12)
+        .map(|i| Vec3::new(i as f32 / 12.0, (i % 4) as f32 / 4.0, (i / 4) as f32 / 3.0))
+        .collect();
+    Texture::new(4, 3, px).unwrap()
+}
+
+#[test]
+fn bilinear_lookup_is_exact_at_texel_centres_and_wraps() {
+    let t = ramp();
+    for y in 0..3 {
+        for x in 0..4 {
+            // Texel (x, y) from the top-left sits at u = (x + 0.5) / w, v = 1 - (y + 0.5) / h.
+            let uv = Vec2::new((x as f32 + 0.5) / 4.0, 1.0 - (y as f32 + 0.5) / 3.0);
+            let want = t.texel(x, y);
+            assert!((t.lookup(uv) - want).abs().max_element() < 1e-6, "{x} {y}");
+            // Repeat: whole periods away, the same texel.
+            for (du, dv) in [(1.0, 0.0), (-2.0, 3.0), (5.0, -1.0)] {
+                let v = t.lookup(uv + Vec2::new(du, dv));
+                assert!((v - want).abs().max_element() < 1e-5, "{x} {y} {du} {dv}");
+            }
+        }
+    }
+    // Halfway between two centres: their mean; at the right edge it mixes with column 0.
+    let mid = t.lookup(Vec2::new(1.0 / 4.0, 1.0 - 0.5 / 3.0));
+    assert!(
+        (mid - (t.texel(0, 0) + t.texel(1, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    let edge = t.lookup(Vec2::new(1.0, 1.0 - 0.5 / 3.0));
+    assert!(
+        (edge - (t.texel(3, 0) + t.texel(0, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    // v = 0 is the bottom edge: between the last row and (wrapping) the first.
+    let bottom = t.lookup(Vec2::new(0.5 / 4.0, 0.0));
+    assert!(
+        (bottom - (t.texel(0, 2) + t.texel(0, 0)) * 0.5)
+            .abs()
+            .max_element()
+            < 1e-6
+    );
+    // Non-finite coordinates read a texel, never panic.
+    assert_eq!(t.lookup(Vec2::new(f32::NAN, 0.0)), t.texel(0, 0));
+    let _ = t.lookup(Vec2::new(1e30, -1e30));
+}
+
+fn err(path: &Path, enc: Encoding) -> String {
+    let e = Texture::read(path, enc).unwrap_err().to_string();
+    assert!(
+        e.contains(&*path.file_name().unwrap().to_string_lossy()),
+        "the error names the file: {e}"
+    );
+    e
+}
+
+#[test]
+fn bad_texture_files_are_refused_naming_the_file_and_the_problem() {
+    let dir = temp_dir("tex-bad");
+    let at = |n: &str| -> PathBuf { dir.join(n) };
+    // Missing.
+    let e = err(&at("missing.png"), Encoding::Colour);
+    assert!(e.to_lowercase().contains("no such file"), "{e}");
+    // Neither PNG nor EXR.
+    std::fs::write(at("t.jpg"), b"\xff\xd8\xff").unwrap();
+    let e = err(&at("t.jpg"), Encoding::Colour);
+    assert!(e.contains("expected png or exr"), "{e}");
+    // Not a PNG inside.
+    std::fs::write(at("fake.png"), b"hello, world").unwrap();
+    let e = err(&at("fake.png"), Encoding::Colour);
+    assert!(e.contains("PNG"), "{e}");
+    // NaN, negative and over-one texels (EXR can hold them).
+    for (name, v, what) in [
+        ("nan.exr", f32::NAN, "NaN"),
+        ("neg.exr", -0.5, "-0.5"),
+        ("big.exr", 2.0, "2"),
+    ] {
+        write_exr_raw(&at(name), 2, 1, &[Vec3::splat(0.5), Vec3::new(0.1, v, 0.1)]);
+        let e = err(&at(name), Encoding::Data);
+        assert!(
+            e.contains("texel (1, 0)") && e.contains(what) && e.contains("[0, 1]"),
+            "{e}"
+        );
+    }
+    // Oversized: refused from the header, before the texels are allocated.
+    let wide = MAX_TEXTURE_SIDE as u32 + 1;
+    write_png(&at("wide.png"), wide, 1, 1, &vec![0u8; wide as usize]);
+    let e = err(&at("wide.png"), Encoding::Data);
+    assert!(e.contains("exceed the texture limit"), "{e}");
+    exr::prelude::write_rgb_file(at("wide.exr"), wide as usize, 1, |_, _| (0.0, 0.0, 0.0)).unwrap();
+    let e = err(&at("wide.exr"), Encoding::Data);
+    assert!(e.contains("exceed the texture limit"), "{e}");
+    // A directory is not a texture.
+    std::fs::create_dir_all(at("dir.png")).unwrap();
+    err(&at("dir.png"), Encoding::Data);
+}
+
+#[test]
+fn texture_new_checks_its_size() {
+    assert!(Texture::new(0, 1, vec![]).is_err());
+    assert!(Texture::new(2, 2, vec![Vec3::ZERO; 3]).is_err());
+    assert!(Texture::constant(Vec3::splat(0.5)).is_ok());
+}
+
+/// Truncated and corrupted PNG and EXR textures are errors (or, when the damage misses
+/// what is read, textures), never panics.
+#[test]
+fn corrupted_textures_never_panic() {
+    let dir = temp_dir("tex-corrupt");
+    let png = dir.join("ok.png");
+    let data: Vec<u8> = (0..8 * 8 * 3).map(|i| (i * 37 % 256) as u8).collect();
+    write_png(&png, 8, 8, 3, &data);
+    let exr = dir.join("ok.exr");
+    let px: Vec<Vec3> = (0..16).map(|i| Vec3::splat(i as f32 / 16.0)).collect();
+    write_exr_raw(&exr, 4, 4, &px);
+    for (good, ext) in [(png, "png"), (exr, "exr")] {
+        let bytes = std::fs::read(&good).unwrap();
+        let bad = dir.join(format!("bad.{ext}"));
+        let mut n = 0;
+        for k in (0..bytes.len()).step_by(3) {
+            // Truncated at k, and byte k inverted.
+            let mut flipped = bytes.clone();
+            flipped[k] ^= 0xff;
+            for b in [&bytes[..k], &flipped[..]] {
+                std::fs::write(&bad, b).unwrap();
+                let r = std::panic::catch_unwind(|| Texture::read(&bad, Encoding::Colour));
+                assert!(r.is_ok(), "{ext}: panic at byte {k}");
+                n += 1;
+            }
+        }
+        assert!(n > 20);
+    }
+}
