@@ -28,8 +28,9 @@
 //!    slices of the three views are blended by eq. 6 ([`relight_bake::vmf::blend_slices`]);
 //!    axes are rotated into the map frame (`Environment::env_from_world`). A vertex with a
 //!    diffuse SH transfer (`relight_bake::vmf::diffuse_sh`) gets its diffuse term's radiance
-//!    `sum_k t_k L_k` here (the lighting's world-frame SH, [`SgLighting::world_sh`]) and its
-//!    three diffuse-term lobes are dropped (amplitude zero).
+//!    `c(v) sum_k t_k L_k` here (the lighting's world-frame SH, [`SgLighting::world_sh`];
+//!    `c(v)` the view factor of its material's diffuse term, 1 but for the GGX plastic) and
+//!    its three diffuse-term lobes are dropped (amplitude zero).
 //! 2. **Per pixel** (deferred shading): the three vertices' blended lobes are blended again by
 //!    eq. 6 with the fragment's barycentrics ("interpolated during rasterization", section
 //!    6.2) and each lobe is one fetch: `L_o = scale sum_j alpha_j P_{kappa_j}(mu_j)`, plus
@@ -39,8 +40,9 @@ use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use crate::shade_sg::{ChainOptions, SgLighting};
 use glam::Vec3;
 use rayon::prelude::*;
-use relight_bake::vmf::{blend_lobes, TransferSlice, ViewTable, VmfBake};
+use relight_bake::vmf::{blend_lobes, diffuse_sh, TransferSlice, ViewTable, VmfBake};
 use relight_scene::camera::Camera;
+use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
 use relight_sphere::vmf::VmfLobe;
@@ -109,6 +111,9 @@ pub struct VmfRenderer<'a> {
     /// `tables[level]`, for the levels the bake uses.
     tables: Vec<Option<ViewTable>>,
     frames: Vec<Frame>,
+    /// Each vertex's material, for the view factor of its diffuse SH transfer
+    /// ([`relight_bake::vmf::diffuse_sh::view_factor`]); empty: factor 1 everywhere.
+    vertex_materials: Vec<Material>,
 }
 
 impl<'a> VmfRenderer<'a> {
@@ -138,7 +143,24 @@ impl<'a> VmfRenderer<'a> {
             bake,
             tables,
             frames,
+            vertex_materials: Vec::new(),
         }
+    }
+
+    /// The renderer with each vertex's material (the bake's: the first triangle's, as
+    /// `relight_bake::sg::transport::vertex_materials`), whose view factor scales the
+    /// diffuse SH transfer (the GGX plastic's Fresnel transmission towards the viewer).
+    ///
+    /// # Panics
+    /// If `materials` does not hold one material per vertex.
+    pub fn with_vertex_materials(mut self, materials: Vec<Material>) -> Self {
+        assert_eq!(
+            materials.len(),
+            self.mesh.vertex_count(),
+            "one material per vertex"
+        );
+        self.vertex_materials = materials;
+        self
     }
 
     /// The slice of vertex `x` for the world view direction `v` (unit, towards the viewer),
@@ -179,7 +201,11 @@ impl<'a> VmfRenderer<'a> {
                         }
                     }
                     if let Some(t) = sh {
-                        *d = relight_bake::vmf::diffuse_sh::radiance(t, light_sh);
+                        let c = self
+                            .vertex_materials
+                            .get(x)
+                            .map_or(1.0, |m| diffuse_sh::view_factor(m, v.dot(self.frames[x].n)));
+                        *d = diffuse_sh::radiance(t, light_sh) * c;
                     }
                 }
             });

@@ -597,7 +597,7 @@ impl<'a> PointBaker<'a> {
             .expect("a material of the bake");
         // The diffuse SH transfer: the mean projection over every slice computed.
         let order = settings.diffuse_sh_order as usize;
-        let sh_on = order > 0 && super::diffuse_sh::view_independent_diffuse(&point.material);
+        let sh_on = order > 0 && super::diffuse_sh::separable_diffuse(&point.material);
         let mut sh = vec![
             Vec3::ZERO;
             if order > 0 {
@@ -606,7 +606,7 @@ impl<'a> PointBaker<'a> {
                 0
             }
         ];
-        let mut computed = 0u32;
+        let mut norm = 0.0f32;
         let r = self.refiner.refine(
             lo,
             hi,
@@ -630,8 +630,9 @@ impl<'a> PointBaker<'a> {
                     stream,
                 );
                 if sh_on {
-                    super::diffuse_sh::accumulate(&samples, order, &mut sh);
-                    computed += 1;
+                    let c = super::diffuse_sh::view_factor(&point.material, view.normalize().z);
+                    super::diffuse_sh::accumulate(&samples, order, c, &mut sh);
+                    norm += c * c;
                 }
                 samples.estimate(KappaEstimate::Banerjee, settings.kappa_max)
             },
@@ -639,7 +640,8 @@ impl<'a> PointBaker<'a> {
                 self.refined[level as usize].fetch_add(1, Ordering::Relaxed);
             },
         );
-        let inv = 1.0 / computed.max(1) as f32;
+        // The least-squares fit over the slices (`diffuse_sh` module docs).
+        let inv = if norm > 0.0 { 1.0 / norm } else { 0.0 };
         sh.iter_mut().for_each(|c| *c *= inv);
         (r.level as u8, r.slices, sh)
     }

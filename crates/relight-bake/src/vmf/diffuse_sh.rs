@@ -14,14 +14,20 @@
 //! lobes.
 //!
 //! # The projection
-//! `t_k = (1 / S) sum_slices sum_i w_i Y_k(s_i)` over the diffuse-term samples (directions
-//! `s_i` world, weights `w_i` already divided by the paths, [`super::slice`]) of the `S`
-//! slices the vertex computed (every view and level the refinement tried): each slice's
-//! sum is an unbiased estimate of `int T_d(s) Y_k(s) ds`, which does not depend on the view
-//! when `f_d` does not ([`view_independent_diffuse`]: Lambert and Blinn-Phong). A vertex of
-//! another material (the GGX plastic, whose diffuse base is weighted by the view's Fresnel
-//! transmission) keeps its diffuse lobes and an all-zero SH row: a row that is all zero
-//! means "use the lobes" ([`VmfBake::diffuse_sh_row`]).
+//! The diffuse term of every material the bake takes is separable in the view:
+//! `f_d(v, s) = c(v) g(s)`, with `c = 1` for Lambert and Blinn-Phong (`diffuse / pi cos`) and
+//! `c(v) = T(cos v)`, the coating's Fresnel transmission towards the viewer, for the GGX
+//! plastic ([`view_factor`]; `relight_scene::material`'s plastic, as Mitsuba's
+//! `roughplastic`). So the diffuse transfer is `c(v)` times a view-independent SH vector
+//! `t`, and each slice's projection `S_s = sum_i w_i Y_k(s_i)` over its diffuse-term samples
+//! (directions `s_i` world, weights `w_i` already divided by the paths, [`super::slice`]) is
+//! an unbiased estimate of `c(v_s) t_k`. The bake keeps the least-squares `t` over the slices
+//! the vertex computed (every view and level the refinement tried),
+//! `t_k = sum_s c_s S_s / sum_s c_s^2`, which is their mean when `c = 1` and weighs the
+//! grazing views of a plastic (small `c`, whose division would amplify noise) least. The
+//! frame renders `c(v) sum_k t_k L_k`. The GGX conductor has no diffuse term (an all-zero
+//! row); a row that is all zero means "use the lobes" ([`VmfBake::diffuse_sh_row`]), which
+//! is also how bundles baked before the plastic's SH render its diffuse lobes.
 //!
 //! SH conventions are `relight_sphere::sh`'s (real, orthonormal, `Y_k` with `k = l(l+1)+m`).
 
@@ -34,25 +40,42 @@ use relight_sphere::sh::{eval_sh, sh_count};
 /// Largest SH order of the diffuse transfer.
 pub const MAX_DIFFUSE_SH_ORDER: u32 = 10;
 
-/// Whether `m`'s diffuse term `f_d` (eq. 9's split) is the same for every view: Lambert and
-/// Blinn-Phong (`diffuse / pi cos`). The GGX conductor has none; the GGX plastic's depends on
-/// the view.
-pub fn view_independent_diffuse(m: &Material) -> bool {
-    matches!(m, Material::Lambert { .. } | Material::BlinnPhong { .. })
+/// Whether `m`'s diffuse term `f_d` (eq. 9's split) is separable, `c(v) g(s)` (module
+/// docs): Lambert, Blinn-Phong and the GGX plastic. The GGX conductor has none; Ward is not a
+/// vMF material.
+pub fn separable_diffuse(m: &Material) -> bool {
+    matches!(
+        m,
+        Material::Lambert { .. } | Material::BlinnPhong { .. } | Material::GgxPlastic { .. }
+    )
 }
 
-/// Add the SH projection (order `order`) of the diffuse-term samples of `s` to `acc`
-/// (`order^2` coefficients).
+/// The view's factor `c(v)` of `m`'s diffuse term for a view at `cos_view` to the normal:
+/// the plastic's Fresnel transmission `T(cos_view)` (`Material::eval`'s `t.transmittance(ci)`),
+/// 1 for every other material.
+pub fn view_factor(m: &Material, cos_view: f32) -> f32 {
+    match *m {
+        Material::GgxPlastic { alpha, ior, .. } => {
+            relight_scene::material::microfacet::PlasticTables::get(alpha, ior)
+                .transmittance(cos_view.clamp(0.0, 1.0))
+        }
+        _ => 1.0,
+    }
+}
+
+/// Add `scale` times the SH projection (order `order`) of the diffuse-term samples of `s` to
+/// `acc` (`order^2` coefficients): `scale = c(v)` of the slice's view for the least-squares
+/// sum of the module docs.
 ///
 /// # Panics
 /// Debug builds assert `acc` has `order^2` entries.
-pub fn accumulate(s: &SliceSamples, order: usize, acc: &mut [Vec3]) {
+pub fn accumulate(s: &SliceSamples, order: usize, scale: f32, acc: &mut [Vec3]) {
     debug_assert_eq!(acc.len(), sh_count(order));
     let mut y = vec![0.0f32; sh_count(order)];
     for w in s.classes[Term::Diffuse.index()].iter().flatten() {
         eval_sh(order, w.dir, &mut y);
         for (a, &yk) in acc.iter_mut().zip(&y) {
-            *a += w.weight * yk;
+            *a += w.weight * (scale * yk);
         }
     }
 }
@@ -113,7 +136,7 @@ mod tests {
             });
         }
         let mut acc = vec![Vec3::ZERO; 25];
-        accumulate(&s, 5, &mut acc);
+        accumulate(&s, 5, 1.0, &mut acc);
         for (k, c) in acc.iter().enumerate() {
             let m_zero = [0, 2, 6, 12, 20].contains(&k);
             assert!(m_zero || c.x.abs() < 2e-3, "coefficient {k}: {c}");

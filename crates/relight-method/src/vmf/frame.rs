@@ -50,7 +50,12 @@ impl<'a> VmfFrame<'a> {
         check_prefilter_size(s.prefilter_size, "vmf")?;
         Ok(VmfFrame {
             baked,
-            renderer: VmfRenderer::new(&baked.scene.mesh, &baked.bake),
+            renderer: VmfRenderer::new(&baked.scene.mesh, &baked.bake).with_vertex_materials(
+                relight_bake::sg::transport::vertex_materials(
+                    &baked.scene.mesh,
+                    &baked.scene.materials,
+                ),
+            ),
             prefilter_size: s.prefilter_size,
             lighting: None,
         })
