@@ -230,7 +230,7 @@ impl<'a> VisibilitySampler<'a> {
                             self.sample(v, values, scratch);
                             stats.compute(tree, values);
                             let cut: SelectedCut =
-                                select_cut(tree, stats, sigma2, params.max_nodes, heap);
+                                select_cut(tree, stats, self.threshold(sigma2, stats, tree), params.max_nodes, heap);
                             part.push(tree, &cut, stats);
                         }
                         self.progress(&pb, part.vertex_count());
@@ -241,6 +241,20 @@ impl<'a> VisibilitySampler<'a> {
         })?;
         pb.finish_and_clear();
         Ok(concat(parts))
+    }
+
+    /// The threshold of Eq. 6 for one vertex: `sigma^2` for directions (a function in
+    /// `[0, 1]` of order 1); for surface points `sigma^2 <g>^2`, `<g>` the vertex's mean over
+    /// all samples, i.e. Eq. 6 on `g / <g>` (the geometric term is of order `A_s / d^2`,
+    /// ~1e-3 and less, so an absolute `sigma` would leave every cut at the root).
+    fn threshold(&self, sigma2: f32, stats: &NodeStats, tree: &LightTree) -> f32 {
+        match self.targets {
+            LightTargets::Directions(_) => sigma2,
+            LightTargets::Points(_) => {
+                let m = stats.mean[tree.root() as usize];
+                sigma2 * m * m
+            }
+        }
     }
 
     fn progress(&self, pb: &ProgressBar, n: usize) {
