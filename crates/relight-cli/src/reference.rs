@@ -37,6 +37,9 @@ pub struct Args {
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
+    /// A point or spot light besides the environment.
+    #[command(flatten)]
+    pub light: relight_method::cuts::local::PointLightArgs,
 }
 
 /// Run `relight reference`.
@@ -70,7 +73,11 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         show_background: a.background,
         progress: true,
     };
-    let img = pathtrace::render(&scene, caster.as_ref(), &s);
+    let lights: Vec<_> = a.light.light()?.into_iter().collect();
+    for l in &lights {
+        relight_render::light::check_not_inside(l, &scene.mesh, caster.as_ref())?;
+    }
+    let (img, _) = pathtrace::render_with_lights(&scene, caster.as_ref(), &s, &lights);
     for o in &a.out {
         write_image(o, &img, &tm)?;
         out.line(format!("wrote {}", o.display()));

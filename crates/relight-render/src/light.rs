@@ -13,6 +13,11 @@
 //!   in angle) edge. `theta_c` is in `(0, 180]` degrees; at 180 every direction is lit, fading beyond 135 degrees.
 
 use glam::Vec3;
+use relight_scene::accel::{Ray, RayCaster};
+use relight_scene::mesh::TriMesh;
+
+/// Rays cast from a light to tell whether it sits inside a closed object.
+pub const INSIDE_RAYS: usize = 64;
 
 /// Fraction of the cut-off angle inside which a spot light is at full intensity (Mitsuba 3's
 /// default `beam_width = 3/4 cutoff_angle`).
@@ -132,6 +137,42 @@ impl PointLight {
         }
         Some((i * (cos / d2), w, d))
     }
+}
+
+/// Refuse a light inside a closed object of `mesh` (`caster` built over it): of
+/// [`INSIDE_RAYS`] rays from it (a Fibonacci sphere), more than half of those that hit
+/// something meet the back of a surface (one-sided surfaces face their outside).
+///
+/// # Errors
+/// [`LightError::InsideGeometry`].
+pub fn check_not_inside(
+    light: &PointLight,
+    mesh: &TriMesh,
+    caster: &dyn RayCaster,
+) -> Result<(), LightError> {
+    let (mut back, mut hits) = (0, 0);
+    let golden = (1.0 + 5f64.sqrt()) / 2.0;
+    for i in 0..INSIDE_RAYS {
+        // The Fibonacci sphere: y = 1 - (2i + 1) / n, azimuth 2 pi i / golden ratio.
+        let y = 1.0 - (2.0 * i as f64 + 1.0) / INSIDE_RAYS as f64;
+        let r = (1.0 - y * y).max(0.0).sqrt();
+        let phi = 2.0 * std::f64::consts::PI * (i as f64 / golden).fract();
+        let d = Vec3::new((r * phi.cos()) as f32, y as f32, (r * phi.sin()) as f32);
+        if let Some(h) = caster.intersect(&Ray::new(light.position, d, 0.0, f32::INFINITY)) {
+            hits += 1;
+            if mesh.geometric_normal(h.tri as usize).dot(d) > 0.0 {
+                back += 1;
+            }
+        }
+    }
+    if hits > 0 && 2 * back > hits {
+        return Err(LightError::InsideGeometry {
+            position: light.position,
+            back,
+            rays: INSIDE_RAYS,
+        });
+    }
+    Ok(())
 }
 
 /// Mitsuba 3's spot falloff (module docs) towards unit `w`.

@@ -47,9 +47,6 @@ use std::time::Instant;
 /// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated.
 const HORIZON: f32 = 1e-3;
 
-/// Rays cast from a light to tell whether it sits inside a closed object.
-pub const INSIDE_RAYS: usize = 64;
-
 /// Which terms a frame adds (the measurement split and the tests' controls).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Terms {
@@ -130,34 +127,14 @@ impl<'a> LocalShader<'a> {
         })
     }
 
-    /// Check `light` ([`PointLight::validated`]) and that it is not inside a closed object:
-    /// of [`INSIDE_RAYS`] rays from it (a Fibonacci sphere), those that hit something must
-    /// not mostly meet the back of a surface.
+    /// Check `light` ([`PointLight::validated`]) and that it is not inside a closed object
+    /// ([`crate::light::check_not_inside`]).
     ///
     /// # Errors
     /// The [`LightError`].
     pub fn check_light(&self, light: PointLight) -> Result<PointLight, LightError> {
         let light = light.validated()?;
-        let (mut back, mut hits) = (0, 0);
-        for i in 0..INSIDE_RAYS {
-            let d = relight_bake::cuts::samples::fibonacci_point(i, INSIDE_RAYS);
-            if let Some(h) = self
-                .caster
-                .intersect(&Ray::new(light.position, d, 0.0, f32::INFINITY))
-            {
-                hits += 1;
-                if self.mesh.geometric_normal(h.tri as usize).dot(d) > 0.0 {
-                    back += 1;
-                }
-            }
-        }
-        if hits > 0 && 2 * back > hits {
-            return Err(LightError::InsideGeometry {
-                position: light.position,
-                back,
-                rays: INSIDE_RAYS,
-            });
-        }
+        crate::light::check_not_inside(&light, self.mesh, self.caster)?;
         Ok(light)
     }
 

@@ -54,7 +54,7 @@ pub struct CutsBakeSettings {
     /// Light samples: environment directions, or surface points for local lights
     /// (`relight render --point-light`). Bundles from before this setting are environment.
     #[serde(default)]
-    #[cfg_attr(feature = "cli", arg(long = "cut-samples", value_enum, default_value_t = LightSampleKind::Environment))]
+    #[cfg_attr(feature = "cli", arg(long = "cut-samples", id = "cut_samples", value_enum, default_value_t = LightSampleKind::Environment))]
     pub samples: LightSampleKind,
     /// `sigma` of Eq. 6: every cut node has `|C| var <= sigma^2` (the paper: 1.5-3), `>= 0`.
     #[cfg_attr(feature = "cli", arg(long = "cut-sigma", default_value_t = DEFAULT_SIGMA))]
