@@ -197,7 +197,11 @@ mod tests {
     #[test]
     fn irradiance_on_an_unoccluded_plane_is_i_cos_over_d2() {
         let l = PointLight::new(Vec3::new(0.3, 2.0, -0.4), Vec3::new(1.0, 2.0, 3.0));
-        for x in [Vec3::ZERO, Vec3::new(1.5, 0.0, 0.7), Vec3::new(-3.0, 0.0, 2.0)] {
+        for x in [
+            Vec3::ZERO,
+            Vec3::new(1.5, 0.0, 0.7),
+            Vec3::new(-3.0, 0.0, 2.0),
+        ] {
             let (e, w, d) = l.irradiance(x, Vec3::Y).unwrap();
             let to = l.position - x;
             let expect = l.intensity * (to.y / to.length()) / to.length_squared();
@@ -236,7 +240,9 @@ mod tests {
         let ok = PointLight::new(Vec3::ONE, Vec3::ONE);
         assert!(ok.validated().is_ok());
         let bad = |l: PointLight| l.validated().unwrap_err().to_string();
-        assert!(bad(PointLight::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE)).contains("position"));
+        assert!(
+            bad(PointLight::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE)).contains("position")
+        );
         assert!(bad(PointLight::new(Vec3::ONE, Vec3::ZERO)).contains("intensity"));
         assert!(bad(PointLight::new(Vec3::ONE, Vec3::new(1.0, -1.0, 1.0))).contains("intensity"));
         for angle in [0.0, -5.0, 180.5, f32::NAN] {

@@ -133,8 +133,8 @@ pub fn weighted_positions(tree: &LightTree, weight: &[f64]) -> Vec<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cuts::visibility::VisibilitySampler;
     use crate::cuts::visibility::LightTargets;
+    use crate::cuts::visibility::VisibilitySampler;
     use relight_scene::accel::{build, Backend};
     use relight_scene::mesh::TriMesh;
     use relight_scene::shapes::ground_plane;
@@ -205,7 +205,10 @@ mod tests {
                 exact += hh * hh / (std::f64::consts::PI * r2 * r2) * step * step;
             }
         }
-        assert!((sum - exact).abs() < 5e-3 * exact, "sum {sum}, exact {exact}");
+        assert!(
+            (sum - exact).abs() < 5e-3 * exact,
+            "sum {sum}, exact {exact}"
+        );
         // The floor's own samples (coplanar) add nothing.
         for (k, &x) in out.iter().enumerate() {
             if points.normals[k].y > 0.0 {

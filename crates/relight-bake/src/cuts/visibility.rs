@@ -229,8 +229,13 @@ impl<'a> VisibilitySampler<'a> {
                         for v in start..(start + CHUNK).min(range.end) {
                             self.sample(v, values, scratch);
                             stats.compute(tree, values);
-                            let cut: SelectedCut =
-                                select_cut(tree, stats, self.threshold(sigma2, stats, tree), params.max_nodes, heap);
+                            let cut: SelectedCut = select_cut(
+                                tree,
+                                stats,
+                                self.threshold(sigma2, stats, tree),
+                                params.max_nodes,
+                                heap,
+                            );
                             part.push(tree, &cut, stats);
                         }
                         self.progress(&pb, part.vertex_count());

@@ -9,8 +9,8 @@ use super::CutsBaked;
 use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA};
 use relight_bake::cuts::samples::sample_power;
-use relight_render::raster::RasterOptions;
 use relight_render::light::PointLight;
+use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
 use relight_render::shade_local::{LocalLighting, LocalShader};
 use relight_scene::accel::RayCaster;
@@ -269,7 +269,11 @@ impl Frame for CutsFrame<'_> {
                 format!(
                     ", light cut {} nodes (error bound {}), lighting {:.1} ms + cut {:.1} ms",
                     l.cut.len(),
-                    if l.cut.error_bound_met { "met" } else { "not met" },
+                    if l.cut.error_bound_met {
+                        "met"
+                    } else {
+                        "not met"
+                    },
                     l.sample_ms,
                     l.cut_ms
                 )

@@ -48,7 +48,10 @@ pub struct PointLightArgs {
     pub spot_dir: Option<Vec3>,
     /// Cut-off half-angle of a spot light, degrees in (0, 180] (full intensity within 3/4
     /// of it, Mitsuba's `spot`).
-    #[cfg_attr(feature = "cli", arg(long, value_name = "DEG", allow_hyphen_values = true))]
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_name = "DEG", allow_hyphen_values = true)
+    )]
     pub spot_angle: Option<f32>,
 }
 
@@ -62,7 +65,9 @@ impl PointLightArgs {
     pub fn light(&self) -> Result<Option<PointLight>, MethodError> {
         let err = |m: String| Err(MethodError::Settings(m));
         let Some(position) = self.point_light else {
-            if self.light_intensity.is_some() || self.spot_dir.is_some() || self.spot_angle.is_some()
+            if self.light_intensity.is_some()
+                || self.spot_dir.is_some()
+                || self.spot_angle.is_some()
             {
                 return err(
                     "--light-intensity, --spot-dir and --spot-angle need --point-light".into(),
@@ -104,7 +109,10 @@ pub fn parse_vec3(text: &str) -> Result<Vec3, String> {
         .map_err(|e| format!("'{text}' is not three numbers x,y,z: {e}"))?;
     match v[..] {
         [x, y, z] => Ok(Vec3::new(x, y, z)),
-        _ => Err(format!("'{text}' has {} numbers, not three (x,y,z)", v.len())),
+        _ => Err(format!(
+            "'{text}' has {} numbers, not three (x,y,z)",
+            v.len()
+        )),
     }
 }
 

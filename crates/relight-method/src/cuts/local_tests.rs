@@ -60,7 +60,11 @@ fn black() -> Environment {
 /// A point above the scene's objects (the test scene: objects around the origin).
 fn above(b: &CutsBaked) -> Vec3 {
     let (lo, hi) = b.scene.mesh.bounds().unwrap();
-    Vec3::new((lo.x + hi.x) * 0.5 + 0.1, hi.y + 1.0, (lo.z + hi.z) * 0.5 - 0.1)
+    Vec3::new(
+        (lo.x + hi.x) * 0.5 + 0.1,
+        hi.y + 1.0,
+        (lo.z + hi.z) * 0.5 - 0.1,
+    )
 }
 
 #[test]
@@ -105,8 +109,14 @@ fn frames_refuse_mismatched_lighting_by_name() {
     let env = baked(LightSampleKind::Environment);
     let local = baked(LightSampleKind::Surface);
     let p = above(&local);
-    let e = CutsFrame::new(&env, &light_settings(p)).err().unwrap().to_string();
-    assert!(e.contains("--point-light needs a bake of surface samples"), "{e}");
+    let e = CutsFrame::new(&env, &light_settings(p))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("--point-light needs a bake of surface samples"),
+        "{e}"
+    );
     let e = CutsFrame::new(&local, &CutsFrameSettings::default())
         .err()
         .unwrap()
@@ -151,7 +161,10 @@ fn moving_the_light_changes_the_frame() {
     };
     let a = frame.render(&cam, &opts).image;
     frame
-        .set_point_light(PointLight::new(p + Vec3::new(1.5, 0.0, 1.0), Vec3::splat(3.0)))
+        .set_point_light(PointLight::new(
+            p + Vec3::new(1.5, 0.0, 1.0),
+            Vec3::splat(3.0),
+        ))
         .unwrap();
     let b = frame.render(&cam, &opts).image;
     let sum = |i: &relight_render::Image| i.pixels.iter().map(|p| p.x as f64).sum::<f64>();
@@ -162,6 +175,10 @@ fn moving_the_light_changes_the_frame() {
         .zip(&b.pixels)
         .map(|(x, y)| (x.x - y.x).abs() as f64)
         .sum();
-    assert!(diff > 0.05 * sum(&a), "moving the light changed {diff} of {}", sum(&a));
+    assert!(
+        diff > 0.05 * sum(&a),
+        "moving the light changed {diff} of {}",
+        sum(&a)
+    );
     assert!(frame.summary().contains("local light"));
 }

@@ -49,8 +49,14 @@ pub fn store(b: &CutsBaked) -> Result<Bundle, MethodError> {
     let (s, c) = (&b.bake.samples, &b.bake.cuts);
     let n = b.bake.tree.light_count();
     if let Some(p) = &b.bake.surface {
-        out.insert("cuts_positions", Tensor::from_f32(vec![n, 3], &flat3(&p.positions)));
-        out.insert("cuts_normals", Tensor::from_f32(vec![n, 3], &flat3(&p.normals)));
+        out.insert(
+            "cuts_positions",
+            Tensor::from_f32(vec![n, 3], &flat3(&p.positions)),
+        );
+        out.insert(
+            "cuts_normals",
+            Tensor::from_f32(vec![n, 3], &flat3(&p.normals)),
+        );
         out.insert("cuts_areas", Tensor::from_f32(vec![n], &p.areas));
         out.insert("cuts_triangles", Tensor::from_u32(vec![n], &p.triangles));
     } else {

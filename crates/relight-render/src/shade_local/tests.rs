@@ -1,8 +1,8 @@
 //! Local lighting against closed forms and the path tracer on a small closed room.
 
 use super::*;
-use crate::image::Image;
 use crate::compare::metrics;
+use crate::image::Image;
 use crate::pathtrace::{render_with_lights, PtSettings};
 use relight_bake::cuts::{bake_range, CutsBakeSettings, LightSampleKind};
 use relight_scene::accel::{build, Backend};
@@ -16,7 +16,11 @@ const WALL_DIV: u32 = 6;
 /// A closed 2 x 2 x 2 room (walls facing in: left red, right green, the rest white), a
 /// sphere and a box inside; materials 0-2 are white, red, green.
 fn room() -> (TriMesh, Vec<Material>) {
-    let mut walls = aabb_box(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0), WALL_DIV);
+    let mut walls = aabb_box(
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 2.0, 1.0),
+        WALL_DIV,
+    );
     for t in &mut walls.indices {
         t.swap(1, 2);
     }
@@ -34,7 +38,10 @@ fn room() -> (TriMesh, Vec<Material>) {
         .collect();
     let mut mesh = walls;
     mesh.append(&uv_sphere(Vec3::new(-0.4, 0.35, -0.3), 0.35, 10, 20), 0);
-    mesh.append(&aabb_box(Vec3::new(0.1, 0.0, -0.2), Vec3::new(0.6, 0.6, 0.3), 2), 0);
+    mesh.append(
+        &aabb_box(Vec3::new(0.1, 0.0, -0.2), Vec3::new(0.6, 0.6, 0.3), 2),
+        0,
+    );
     let materials = vec![
         Material::Lambert {
             albedo: Vec3::splat(0.7),
@@ -101,7 +108,11 @@ fn reference(f: &Fixture, light: PointLight, max_depth: i32, spp: u32) -> (Image
     };
     let (img, var) = render_with_lights(&scene, f.caster.as_ref(), &s, &[light]);
     // Relative noise of the mean image: sqrt(mean var) / sqrt(mean b^2), channels pooled.
-    let v: f64 = var.pixels.iter().map(|p| p.x as f64 + p.y as f64 + p.z as f64).sum();
+    let v: f64 = var
+        .pixels
+        .iter()
+        .map(|p| p.x as f64 + p.y as f64 + p.z as f64)
+        .sum();
     let b2: f64 = img
         .pixels
         .iter()
@@ -109,7 +120,6 @@ fn reference(f: &Fixture, light: PointLight, max_depth: i32, spp: u32) -> (Image
         .sum();
     (img, (v / b2).sqrt())
 }
-
 
 #[test]
 fn direct_light_on_an_open_plane_is_the_closed_form() {
@@ -134,7 +144,11 @@ fn direct_light_on_an_open_plane_is_the_closed_form() {
     let light = PointLight::new(Vec3::new(0.4, 1.5, -0.2), Vec3::new(2.0, 1.0, 3.0));
     let l = shader.prepare(light, 2.0, 64).unwrap();
     let eye = Vec3::new(0.0, 3.0, 3.0);
-    for x in [Vec3::ZERO, Vec3::new(1.2, 0.0, 0.9), Vec3::new(-1.7, 0.0, -1.1)] {
+    for x in [
+        Vec3::ZERO,
+        Vec3::new(1.2, 0.0, 0.9),
+        Vec3::new(-1.7, 0.0, -1.1),
+    ] {
         let f = Fragment {
             tri: 0,
             bary: [1.0, 0.0, 0.0],
@@ -144,11 +158,13 @@ fn direct_light_on_an_open_plane_is_the_closed_form() {
         };
         let got = shader.shade_fragment(&l, &f, eye, Terms::ALL);
         let to = light.position - x;
-        let expect =
-            albedo * std::f32::consts::FRAC_1_PI * light.intensity * (to.y / to.length())
-                / to.length_squared();
+        let expect = albedo * std::f32::consts::FRAC_1_PI * light.intensity * (to.y / to.length())
+            / to.length_squared();
         // The plane lights nothing of itself (every sample is coplanar): direct only, f32.
-        assert!((got - expect).abs().max_element() < 1e-5 * expect.max_element(), "{got} vs {expect}");
+        assert!(
+            (got - expect).abs().max_element() < 1e-5 * expect.max_element(),
+            "{got} vs {expect}"
+        );
     }
 }
 
@@ -187,7 +203,10 @@ fn direct_light_matches_the_path_tracer_direct_only() {
         // The same estimator up to the reference's noise and pixel sampling (a 4 x 4 grid
         // against 64 jittered points: shadow and silhouette edges), measured 0.3-0.5 % above
         // the noise: 2 % for the sampling.
-        assert!(e < noise + 0.02, "light at {p}: direct {e:.4}, noise {noise:.4}");
+        assert!(
+            e < noise + 0.02,
+            "light at {p}: direct {e:.4}, noise {noise:.4}"
+        );
     }
 }
 
@@ -216,7 +235,10 @@ fn one_bounce_matches_the_path_tracer_and_the_controls_fail() {
         let (pt, noise) = reference(&f, light_at(p), 3, 256);
         let tol = (noise * noise + CUT_ALLOWANCE * CUT_ALLOWANCE).sqrt();
         let e = metrics(&images[k], &pt, None).rel_rmse;
-        assert!(e < tol, "light at {p}: {e:.4} (noise {noise:.4}, tolerance {tol:.4})");
+        assert!(
+            e < tol,
+            "light at {p}: {e:.4} (noise {noise:.4}, tolerance {tol:.4})"
+        );
         // Control 1: without the bounce the image is far off.
         let direct = Terms {
             direct: true,
@@ -224,7 +246,10 @@ fn one_bounce_matches_the_path_tracer_and_the_controls_fail() {
         };
         let d = shader.render(&lit[k], &cam, &opts, direct).image;
         let e_direct = metrics(&d, &pt, None).rel_rmse;
-        assert!(e_direct > 2.0 * tol, "direct only {e_direct:.4} should fail {tol:.4}");
+        assert!(
+            e_direct > 2.0 * tol,
+            "direct only {e_direct:.4} should fail {tol:.4}"
+        );
         // Control 2: the light moved, its direct light follows, but the light cut (and the
         // samples' lighting) is the other position's.
         let stale = LocalLighting {
@@ -233,12 +258,18 @@ fn one_bounce_matches_the_path_tracer_and_the_controls_fail() {
         };
         let s = shader.render(&stale, &cam, &opts, Terms::ALL).image;
         let e_stale = metrics(&s, &pt, None).rel_rmse;
-        assert!(e_stale > tol, "stale light cut {e_stale:.4} should fail {tol:.4}");
+        assert!(
+            e_stale > tol,
+            "stale light cut {e_stale:.4} should fail {tol:.4}"
+        );
         eprintln!("light at {p}: {e:.4} (noise {noise:.4}), direct only {e_direct:.4}, stale {e_stale:.4}");
     }
     // Moving the light changes the image.
     let moved = metrics(&images[0], &images[1], None).rel_rmse;
-    assert!(moved > 0.2, "moving the light changed the image by {moved:.4} only");
+    assert!(
+        moved > 0.2,
+        "moving the light changed the image by {moved:.4} only"
+    );
 }
 
 #[test]
@@ -261,7 +292,10 @@ fn bad_lights_and_bakes_are_refused() {
     let nan = shader.prepare(light_at(Vec3::new(f32::NAN, 1.0, 0.0)), 2.0, 256);
     assert!(nan.unwrap_err().contains("position"));
     let zero = PointLight::new(Vec3::new(0.0, 1.0, 0.0), Vec3::ZERO);
-    assert!(shader.prepare(zero, 2.0, 256).unwrap_err().contains("intensity"));
+    assert!(shader
+        .prepare(zero, 2.0, 256)
+        .unwrap_err()
+        .contains("intensity"));
     // An environment bake has no surface samples.
     let env_bake = bake_range(
         &f.mesh,
