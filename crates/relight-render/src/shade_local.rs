@@ -262,7 +262,10 @@ impl<'a> LocalShader<'a> {
         }
     }
 
-    /// Render `camera` under the prepared light (`terms` of it), the background black.
+    /// Render `camera` under the prepared light (`terms` of it), the background black:
+    /// [`raster::render_deferred_batched`], each triangle's cuts merged with the light cut
+    /// once per band of rows ([`TriangleMerge`]) and summed per fragment. Equal to
+    /// [`LocalShader::render_per_fragment`] up to f32 rounding (tested).
     ///
     /// # Panics
     /// If `opts.supersample == 0` or the camera's image is empty.
@@ -274,9 +277,127 @@ impl<'a> LocalShader<'a> {
         terms: Terms,
     ) -> Rendered {
         let eye = Vec3::from_array(camera.origin);
+        raster::render_deferred_batched(self.mesh, camera, None, opts, |tri, fs, out| {
+            let direct_only = Terms {
+                indirect: false,
+                ..terms
+            };
+            for (f, o) in fs.iter().zip(out.iter_mut()) {
+                *o = self.shade_fragment(l, f, eye, direct_only);
+            }
+            if terms.indirect {
+                TRIANGLE_MERGE.with_borrow_mut(|t| {
+                    t.build(self, l, tri);
+                    for (f, o) in fs.iter().zip(out.iter_mut()) {
+                        *o += t.shade(self, f, eye);
+                    }
+                });
+            }
+        })
+    }
+
+    /// Render with the per-fragment merge ([`LocalShader::shade_fragment`]): the slow
+    /// reference of [`LocalShader::render`].
+    ///
+    /// # Panics
+    /// As [`LocalShader::render`].
+    pub fn render_per_fragment(
+        &self,
+        l: &LocalLighting,
+        camera: &Camera,
+        opts: &RasterOptions,
+        terms: Terms,
+    ) -> Rendered {
+        let eye = Vec3::from_array(camera.origin);
         raster::render_deferred(self.mesh, camera, None, opts, |f| {
             self.shade_fragment(l, f, eye, terms)
         })
+    }
+}
+
+thread_local! {
+    /// Each rendering thread's [`TriangleMerge`] (reused across triangles).
+    static TRIANGLE_MERGE: std::cell::RefCell<TriangleMerge> = Default::default();
+}
+
+/// One triangle's merged cut (its three vertex cuts and the light cut, sec. 3.2) with what
+/// each cluster `k` adds at a fragment: `|C'_k| <l>_k`, the corners' `<g_j>_k` and the
+/// cluster's position. Clusters no corner sees or that hold no light are dropped.
+#[derive(Default)]
+struct TriangleMerge {
+    power: Vec<Vec3>,
+    g: Vec<[f32; 3]>,
+    position: Vec<Vec3>,
+}
+
+impl TriangleMerge {
+    /// Merge triangle `tri`'s vertex cuts with `l`'s light cut into `self`.
+    fn build(&mut self, shader: &LocalShader<'_>, l: &LocalLighting, tri: u32) {
+        self.power.clear();
+        self.g.clear();
+        self.position.clear();
+        let [a, b, c] = shader.mesh.indices[tri as usize];
+        let cuts = [a, b, c].map(|v| shader.bake.cuts.cut(v as usize));
+        let keys = [
+            CutKeys::from(&l.cut),
+            cuts[0].into(),
+            cuts[1].into(),
+            cuts[2].into(),
+        ];
+        merge_cuts(keys, |node, pos| {
+            let q = [
+                cuts[0].value[pos[1]],
+                cuts[1].value[pos[2]],
+                cuts[2].value[pos[3]],
+            ];
+            let power = l.cut.value[pos[0]] * node.leaves() as f32;
+            if q == [0; 3] || power == Vec3::ZERO {
+                return;
+            }
+            self.power.push(power);
+            self.g.push(q.map(dequantise));
+            self.position.push(l.positions[node.index as usize]);
+        });
+    }
+
+    /// The one-bounce term at fragment `f` (as [`LocalShader::shade_fragment`]'s).
+    fn shade(&self, shader: &LocalShader<'_>, f: &Fragment, eye: Vec3) -> Vec3 {
+        let material = shader.material(f.tri as usize);
+        let view = (eye - f.position).normalize_or_zero();
+        let n = f.shading_normal;
+        if view.dot(n) <= 0.0 || view.dot(f.geometric_normal) <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let b = f.bary;
+        let mut sum = Vec3::ZERO;
+        match (*material.material(), shader.function) {
+            // eval = albedo / pi max(0, n . w): no frame needed.
+            (Material::Lambert { albedo }, CutFunction::Visibility) => {
+                for k in 0..self.power.len() {
+                    let g = self.g[k];
+                    let v = b[0] * g[0] + b[1] * g[1] + b[2] * g[2];
+                    let w = (self.position[k] - f.position).normalize_or_zero();
+                    sum += self.power[k] * (v * n.dot(w).max(0.0));
+                }
+                sum * albedo * std::f32::consts::FRAC_1_PI
+            }
+            _ => {
+                let frame = material.material().shading_frame(n);
+                let wi = frame.to_local(view);
+                if wi.z <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                for k in 0..self.power.len() {
+                    let g = self.g[k];
+                    let v = b[0] * g[0] + b[1] * g[1] + b[2] * g[2];
+                    if v > 0.0 {
+                        let w = (self.position[k] - f.position).normalize_or_zero();
+                        sum += self.power[k] * v * shader.brdf(material, wi, frame.to_local(w));
+                    }
+                }
+                sum
+            }
+        }
     }
 }
 

@@ -318,3 +318,41 @@ fn bad_lights_and_bakes_are_refused() {
     .unwrap();
     assert!(err.to_string().contains("environment"), "{err}");
 }
+
+#[test]
+fn batched_render_equals_the_per_fragment_merge() {
+    for function in [CutFunction::Visibility, CutFunction::VisibilityCosine] {
+        let f = fixture(function);
+        let mut materials = f.materials.clone();
+        // A glossy material too, for the general path.
+        materials[0] = Material::GgxPlastic {
+            diffuse: Vec3::splat(0.5),
+            specular: Vec3::ONE,
+            alpha: 0.3,
+            ior: 1.5,
+        };
+        for m in [f.materials.clone(), materials] {
+            let shader =
+                LocalShader::new(&f.mesh, m, &f.bake, function, f.caster.as_ref()).unwrap();
+            let l = shader.prepare(light_at(POSITIONS[1]), 2.0, 256).unwrap();
+            let cam = Camera::look_at([0.0, 1.0, 0.95], [0.0, 0.8, -1.0], 70.0, 24, 18);
+            let opts = RasterOptions { supersample: 2 };
+            let fast = shader.render(&l, &cam, &opts, Terms::ALL);
+            let slow = shader.render_per_fragment(&l, &cam, &opts, Terms::ALL);
+            let peak = slow
+                .image
+                .pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0, f32::max);
+            assert!(peak > 0.0);
+            for (p, q) in fast.image.pixels.iter().zip(&slow.image.pixels) {
+                // The same terms summed in another order: f32 rounding only.
+                assert!(
+                    (*p - *q).abs().max_element() <= 1e-5 * peak,
+                    "{function:?}: {p} vs {q}"
+                );
+            }
+        }
+    }
+}
