@@ -108,14 +108,19 @@ pub struct ExportArgs {
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
+    /// A point or spot light besides the environment (Mitsuba `point` / `spot` emitter).
+    #[command(flatten)]
+    pub light: relight_method::cuts::local::PointLightArgs,
 }
 
 /// Run `relight export-mitsuba`.
 pub fn export(a: ExportArgs, out: &Out) -> Result<()> {
     let (_, scene) = a.read.load(&a.scene)?;
     std::fs::create_dir_all(&a.out).map_err(|e| anyhow!("{}: {e}", a.out.display()))?;
-    let json = relight_render::mitsuba::export_mitsuba(&scene, &a.out, a.spp, a.max_depth)
-        .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
+    let lights: Vec<_> = a.light.light()?.into_iter().collect();
+    let json =
+        relight_render::mitsuba::export_mitsuba_lit(&scene, &a.out, a.spp, a.max_depth, &lights)
+            .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
     out.line(format!("wrote {}", json.display()));
     out.line(format!(
         "render it with: python tools/mitsuba_reference.py {} out.exr",
