@@ -1,9 +1,11 @@
 //! `relight reference` (path-traced ground truth) and `relight export-mitsuba`.
 
 use crate::args::{self, Out};
-use anyhow::{anyhow, ensure, Result};
+use anyhow::{anyhow, Result};
+use relight_render::mitsuba;
 use relight_render::pathtrace::{self, PtSettings};
-use relight_render::write_image;
+use relight_render::{mitsuba, write_image};
+use relight_scene::accel;
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -45,16 +47,15 @@ pub struct Args {
 /// Run `relight reference`.
 pub fn run(a: Args, out: &Out) -> Result<()> {
     let tm = args::tonemap(&a.tonemap)?;
-    ensure!(
-        (1..=MAX_SPP).contains(&a.spp),
-        "--spp {} is not in 1..={MAX_SPP}",
-        a.spp
-    );
-    ensure!(
-        a.max_depth >= -1,
-        "--max-depth {} is not -1 (unlimited) or >= 0",
-        a.max_depth
-    );
+    let s = PtSettings {
+        spp: a.spp,
+        max_depth: a.max_depth,
+        seed: a.seed,
+        threads: None,
+        show_background: a.background,
+        progress: true,
+    };
+    s.validate(MAX_SPP).map_err(anyhow::Error::msg)?;
     args::check_image_outputs(&a.out, &[&a.scene])?;
     let (_, scene) = a.read.load(&a.scene)?;
     let opts = relight_method::FrameOptions {
@@ -65,18 +66,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     let t0 = Instant::now();
     let caster = relight_scene::accel::build(&scene.mesh, args::backend(None)?)
         .map_err(|e| anyhow!("{}: {e}", a.scene.display()))?;
-    let s = PtSettings {
-        spp: a.spp,
-        max_depth: a.max_depth,
-        seed: a.seed,
-        threads: None,
-        show_background: a.background,
-        progress: true,
-    };
-    let lights: Vec<_> = a.light.light()?.into_iter().collect();
-    for l in &lights {
-        relight_render::light::check_not_inside(l, &scene.mesh, caster.as_ref())?;
-    }
+    let lights = a.light.lights_in(&scene.mesh, caster.as_ref())?;
     let (img, _) = pathtrace::render_with_lights(&scene, caster.as_ref(), &s, &lights);
     for o in &a.out {
         write_image(o, &img, &tm)?;
@@ -117,10 +107,10 @@ pub struct ExportArgs {
 pub fn export(a: ExportArgs, out: &Out) -> Result<()> {
     let (_, scene) = a.read.load(&a.scene)?;
     std::fs::create_dir_all(&a.out).map_err(|e| anyhow!("{}: {e}", a.out.display()))?;
-    let lights: Vec<_> = a.light.light()?.into_iter().collect();
-    let json =
-        relight_render::mitsuba::export_mitsuba_lit(&scene, &a.out, a.spp, a.max_depth, &lights)
-            .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
+    let caster = relight_scene::accel::build_default(&scene.mesh);
+    let lights = a.light.lights_in(&scene.mesh, caster.as_ref())?;
+    let json = mitsuba::export_mitsuba_lit(&scene, &a.out, a.spp, a.max_depth, &lights)
+        .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
     out.line(format!("wrote {}", json.display()));
     out.line(format!(
         "render it with: python tools/mitsuba_reference.py {} out.exr",

@@ -59,7 +59,7 @@ pub enum LightError {
     #[error("spot angle {0} degrees is not in (0, 180]")]
     SpotAngle(f32),
     /// The light sits inside a closed object.
-    #[error("point light at {position} is inside geometry ({back} of {rays} rays from it hit the back of a surface first)")]
+    #[error("point light at {position} is inside geometry or outside closed walls ({back} of {rays} rays from it hit the back of a surface first)")]
     InsideGeometry {
         /// The light's position.
         position: Vec3,

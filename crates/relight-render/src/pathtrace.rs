@@ -69,6 +69,25 @@ impl Default for PtSettings {
     }
 }
 
+impl PtSettings {
+    /// Check user input: `spp` in `1..=max_spp`, `max_depth` -1 (unlimited) or >= 0.
+    ///
+    /// # Errors
+    /// A message naming the option (`--spp`, `--max-depth`) and its range.
+    pub fn validate(&self, max_spp: u32) -> Result<(), String> {
+        if !(1..=max_spp).contains(&self.spp) {
+            return Err(format!("--spp {} is not in 1..={max_spp}", self.spp));
+        }
+        if self.max_depth < -1 {
+            return Err(format!(
+                "--max-depth {} is not -1 (unlimited) or >= 0",
+                self.max_depth
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Render the scene's camera view; see the module docs for the estimator.
 pub fn render(scene: &Scene, caster: &dyn RayCaster, s: &PtSettings) -> Image {
     render_with_variance(scene, caster, s).0

@@ -97,6 +97,28 @@ impl PointLightArgs {
     }
 }
 
+impl PointLightArgs {
+    /// The lights of the options (none or one) in a scene of `mesh` (`caster` built over
+    /// it), each validated and refused inside geometry
+    /// ([`relight_render::light::check_not_inside`]).
+    ///
+    /// # Errors
+    /// As [`PointLightArgs::light`], and [`MethodError::Settings`] for a light inside
+    /// geometry.
+    pub fn lights_in(
+        &self,
+        mesh: &relight_scene::mesh::TriMesh,
+        caster: &dyn relight_scene::accel::RayCaster,
+    ) -> Result<Vec<PointLight>, MethodError> {
+        let lights: Vec<PointLight> = self.light()?.into_iter().collect();
+        for l in &lights {
+            relight_render::light::check_not_inside(l, mesh, caster)
+                .map_err(|e| MethodError::Settings(e.to_string()))?;
+        }
+        Ok(lights)
+    }
+}
+
 /// `x,y,z` as a vector (three finite or not numbers: ranges are checked with the light).
 ///
 /// # Errors
