@@ -2,10 +2,8 @@
 
 use crate::args::{self, Out};
 use anyhow::{anyhow, Result};
-use relight_render::mitsuba;
 use relight_render::pathtrace::{self, PtSettings};
 use relight_render::{mitsuba, write_image};
-use relight_scene::accel;
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
