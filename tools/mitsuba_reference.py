@@ -13,7 +13,11 @@ format). The Mitsuba scene built from it:
   * `perspective` sensor, `look_at(origin, target, up)`, `fov` with `fov_axis = "x"`, an
     `independent` sampler with `spp` samples, an `hdrfilm` (rgb) with a `box` reconstruction
     filter (one sample per jittered point of the pixel, as relight does);
-  * an `envmap` emitter: the latlong EXR, `scale`, `to_world = rotate([0, 1, 0], rotate_y_deg)`;
+  * an `envmap` emitter: the latlong EXR, `scale`, `to_world = rotate([0, 1, 0], rotate_y_deg)`
+    (left out when `env_black`);
+  * a `point` emitter per light of `lights` of type `point` (`position`, rgb `intensity`), a
+    `spot` emitter per `spot` (`to_world = look_at(position, position + direction)`,
+    `cutoff_angle`, `beam_width`, rgb `intensity`);
   * one `ply` shape per material, `face_normals = False` (interpolated vertex normals), with
     `diffuse`, `roughconductor` (ggx, material "none", visible-normal sampling) or
     `roughplastic` (ggx, linear) BSDFs;
@@ -110,13 +114,29 @@ def scene_dict(doc, base_dir, spp=None):
                 "rfilter": {"type": "box"},
             },
         },
-        "environment": {
+    }
+    if not doc.get("env_black", False):
+        d["environment"] = {
             "type": "envmap",
             "filename": os.path.join(base_dir, env["file"]),
             "scale": float(env["scale"]),
             "to_world": T().rotate([0, 1, 0], float(env["rotate_y_deg"])),
-        },
-    }
+        }
+    for i, light in enumerate(doc.get("lights", [])):
+        p = [float(x) for x in light["position"]]
+        intensity = {"type": "rgb", "value": [float(x) for x in light["intensity"]]}
+        if light["type"] == "point":
+            d[f"light_{i}"] = {"type": "point", "position": p, "intensity": intensity}
+        else:
+            a = [float(x) for x in light["direction"]]
+            up = [0, 1, 0] if abs(a[1]) < 0.9 else [1, 0, 0]
+            d[f"light_{i}"] = {
+                "type": "spot",
+                "to_world": T().look_at(origin=p, target=[p[k] + a[k] for k in range(3)], up=up),
+                "cutoff_angle": float(light["cutoff_deg"]),
+                "beam_width": float(light["beam_deg"]),
+                "intensity": intensity,
+            }
     for i, s in enumerate(doc["shapes"]):
         d[f"shape_{i}"] = {
             "type": "ply",

@@ -19,6 +19,10 @@
 //!   products, e.g. three barycentric-weighted vertex cuts times a light cut (Eq. 5, sec. 4.2).
 //! * [`light_cut`]: the illumination cut of a frame: error bound first, then the remaining
 //!   budget by intensity (sec. 3.2, 4.2).
+//! * [`surface`], [`local`]: local lighting (sec. 4.1-4.2): light samples spread by area over
+//!   the surfaces, and the vertex function towards them (visibility times a clamped
+//!   geometric term); a point light's direct light at the samples, re-emitted diffusely, is
+//!   then the light function of one bounce of indirect light (`relight_render::shade_local`).
 //!
 //! ## Conventions (stated once, here)
 //!
@@ -75,13 +79,15 @@
 
 pub mod cut;
 pub mod light_cut;
+pub mod local;
 pub mod merge;
 pub mod samples;
 pub mod settings;
+pub mod surface;
 pub mod tree;
 pub mod visibility;
 
-pub use settings::{CutsBakeSettings, LightTreeKind};
+pub use settings::{CutsBakeSettings, LightSampleKind, LightTreeKind};
 
 use crate::BakeError;
 use cut::VertexCuts;
@@ -89,15 +95,20 @@ use relight_scene::accel::RayCaster;
 use relight_scene::mesh::TriMesh;
 use samples::EnvSamples;
 use std::ops::Range;
+use surface::SurfaceSamples;
 use tree::LightTree;
-use visibility::{CutParams, VisibilitySampler};
+use visibility::{CutParams, LightTargets, VisibilitySampler};
 
 /// A cuts bake: the light samples, the light tree over them and every vertex's visibility
 /// cut. Lighting, BRDFs and materials are applied at render time.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CutsBake {
-    /// The environment light samples (directions and solid angles).
+    /// The environment light samples (directions and solid angles); empty for a bake of
+    /// surface samples.
     pub samples: EnvSamples,
+    /// The surface light samples of local lighting ([`LightSampleKind::Surface`]); `None`
+    /// for an environment bake.
+    pub surface: Option<SurfaceSamples>,
     /// The light tree over the samples.
     pub tree: LightTree,
     /// The visibility cuts of the baked vertices.
@@ -111,6 +122,17 @@ impl CutsBake {
     /// A description of the first broken invariant.
     pub fn validate(&self) -> Result<(), String> {
         self.tree.validate().map_err(|e| e.to_string())?;
+        if let Some(s) = &self.surface {
+            if !self.samples.is_empty() || s.len() != self.tree.light_count() {
+                return Err(format!(
+                    "{} surface samples and {} directions for a tree of {} lights",
+                    s.len(),
+                    self.samples.len(),
+                    self.tree.light_count()
+                ));
+            }
+            return self.cuts.validate(&self.tree).map_err(|e| e.to_string());
+        }
         if self.samples.dirs.len() != self.tree.light_count()
             || self.samples.solid_angles.len() != self.samples.dirs.len()
         {
@@ -138,11 +160,30 @@ pub fn bake_range(
     range: Range<usize>,
 ) -> Result<CutsBake, BakeError> {
     settings.validate()?;
-    let samples = EnvSamples::fibonacci(settings.lights as usize, settings.seed)?;
-    let sampler = VisibilitySampler::new(mesh, caster, &samples.dirs, settings.function)?;
-    let normals: Vec<glam::Vec3> = samples.dirs.iter().map(|&d| -d).collect();
+    let n = settings.lights as usize;
+    let (samples, surface) = match settings.samples {
+        LightSampleKind::Environment => (EnvSamples::fibonacci(n, settings.seed)?, None),
+        LightSampleKind::Surface => (
+            EnvSamples::default(),
+            Some(SurfaceSamples::spread(mesh, n, settings.seed)?),
+        ),
+    };
+    // Environment lights are points on the unit sphere facing the scene (normal -w).
+    let (targets, positions, normals) = match &surface {
+        None => (
+            LightTargets::Directions(&samples.dirs),
+            samples.dirs.clone(),
+            samples.dirs.iter().map(|&d| -d).collect(),
+        ),
+        Some(s) => (
+            LightTargets::Points(s),
+            s.positions.clone(),
+            s.normals.clone(),
+        ),
+    };
+    let sampler = VisibilitySampler::with_targets(mesh, caster, targets, settings.function)?;
     let tree = match settings.tree {
-        LightTreeKind::Geometric => LightTree::geometric(&samples.dirs, &normals, settings.k)?,
+        LightTreeKind::Geometric => LightTree::geometric(&positions, &normals, settings.k)?,
         LightTreeKind::DataDriven => {
             let pilot = sampler.pilot_vectors(
                 settings.vertex_clusters as usize,
@@ -150,7 +191,7 @@ pub fn bake_range(
                 settings.threads,
                 settings.progress,
             )?;
-            LightTree::data_driven(&samples.dirs, &normals, &pilot, settings.k, settings.beta)?
+            LightTree::data_driven(&positions, &normals, &pilot, settings.k, settings.beta)?
         }
     };
     let params = CutParams {
@@ -162,6 +203,7 @@ pub fn bake_range(
     let cuts = sampler.cuts(&tree, range, &params)?;
     Ok(CutsBake {
         samples,
+        surface,
         tree,
         cuts,
     })

@@ -1,9 +1,9 @@
 //! `relight reference` (path-traced ground truth) and `relight export-mitsuba`.
 
 use crate::args::{self, Out};
-use anyhow::{anyhow, ensure, Result};
+use anyhow::{anyhow, Result};
 use relight_render::pathtrace::{self, PtSettings};
-use relight_render::write_image;
+use relight_render::{mitsuba, write_image};
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -37,21 +37,23 @@ pub struct Args {
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
+    /// A point or spot light besides the environment.
+    #[command(flatten)]
+    pub light: relight_method::cuts::local::PointLightArgs,
 }
 
 /// Run `relight reference`.
 pub fn run(a: Args, out: &Out) -> Result<()> {
     let tm = args::tonemap(&a.tonemap)?;
-    ensure!(
-        (1..=MAX_SPP).contains(&a.spp),
-        "--spp {} is not in 1..={MAX_SPP}",
-        a.spp
-    );
-    ensure!(
-        a.max_depth >= -1,
-        "--max-depth {} is not -1 (unlimited) or >= 0",
-        a.max_depth
-    );
+    let s = PtSettings {
+        spp: a.spp,
+        max_depth: a.max_depth,
+        seed: a.seed,
+        threads: None,
+        show_background: a.background,
+        progress: true,
+    };
+    s.validate(MAX_SPP).map_err(anyhow::Error::msg)?;
     args::check_image_outputs(&a.out, &[&a.scene])?;
     let (_, scene) = a.read.load(&a.scene)?;
     let opts = relight_method::FrameOptions {
@@ -62,15 +64,8 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     let t0 = Instant::now();
     let caster = relight_scene::accel::build(&scene.mesh, args::backend(None)?)
         .map_err(|e| anyhow!("{}: {e}", a.scene.display()))?;
-    let s = PtSettings {
-        spp: a.spp,
-        max_depth: a.max_depth,
-        seed: a.seed,
-        threads: None,
-        show_background: a.background,
-        progress: true,
-    };
-    let img = pathtrace::render(&scene, caster.as_ref(), &s);
+    let lights = a.light.lights_in(&scene.mesh, caster.as_ref())?;
+    let (img, _) = pathtrace::render_with_lights(&scene, caster.as_ref(), &s, &lights);
     for o in &a.out {
         write_image(o, &img, &tm)?;
         out.line(format!("wrote {}", o.display()));
@@ -101,13 +96,18 @@ pub struct ExportArgs {
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
+    /// A point or spot light besides the environment (Mitsuba `point` / `spot` emitter).
+    #[command(flatten)]
+    pub light: relight_method::cuts::local::PointLightArgs,
 }
 
 /// Run `relight export-mitsuba`.
 pub fn export(a: ExportArgs, out: &Out) -> Result<()> {
     let (_, scene) = a.read.load(&a.scene)?;
     std::fs::create_dir_all(&a.out).map_err(|e| anyhow!("{}: {e}", a.out.display()))?;
-    let json = relight_render::mitsuba::export_mitsuba(&scene, &a.out, a.spp, a.max_depth)
+    let caster = relight_scene::accel::build_default(&scene.mesh);
+    let lights = a.light.lights_in(&scene.mesh, caster.as_ref())?;
+    let json = mitsuba::export_mitsuba_lit(&scene, &a.out, a.spp, a.max_depth, &lights)
         .map_err(|e| anyhow!("exporting to {}: {e}", a.out.display()))?;
     out.line(format!("wrote {}", json.display()));
     out.line(format!(

@@ -4,6 +4,7 @@
 //! illumination cut and the scene's materials evaluated at run time).
 
 mod frame;
+pub mod local;
 mod store;
 
 pub use frame::{CutsFrame, CutsFrameSettings, MaterialOverride};
@@ -11,7 +12,7 @@ pub use store::{load, store};
 
 use crate::store::{BakeRecord, BakedScene};
 use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError};
-use relight_bake::cuts::{CutsBake, CutsBakeSettings};
+use relight_bake::cuts::{CutsBake, CutsBakeSettings, LightSampleKind};
 use relight_bundle::Bundle;
 use relight_scene::error::Invalid;
 use std::ops::Range;
@@ -38,8 +39,8 @@ impl Method for Cuts {
 
     fn settings_line(s: &CutsBakeSettings) -> String {
         format!(
-            "cuts, {} lights, {:?} light tree, sigma {}, cap {}",
-            s.lights, s.tree, s.sigma, s.max_cut
+            "cuts, {} lights ({:?}), {:?} light tree, sigma {}, cap {}",
+            s.lights, s.samples, s.tree, s.sigma, s.max_cut
         )
     }
 
@@ -116,8 +117,9 @@ impl CutsBaked {
     pub fn describe(&self) -> (Vec<String>, serde_json::Value) {
         let (s, c) = (&self.settings, &self.bake.cuts);
         let lines = vec![format!(
-            "cuts (Cheslack-Postava 2008): {} lights, {:?} light tree, sigma {}, {:?}; mean cut {:.1} nodes, {} cuts capped at {}",
+            "cuts (Cheslack-Postava 2008): {} lights ({:?}), {:?} light tree, sigma {}, {:?}; mean cut {:.1} nodes, {} cuts capped at {}",
             s.lights,
+            s.samples,
             s.tree,
             s.sigma,
             s.function,
@@ -127,6 +129,7 @@ impl CutsBaked {
         )];
         let json = serde_json::json!({
             "lights": s.lights,
+            "samples": s.samples,
             "mean_cut": c.mean_len(),
             "capped": c.capped.len(),
         });
@@ -155,12 +158,44 @@ impl CutsBaked {
         let b = &self.bake;
         b.validate()?;
         let n = self.settings.lights as usize;
+        match (self.settings.samples, &b.surface) {
+            (LightSampleKind::Environment, None) => {}
+            (LightSampleKind::Surface, Some(s)) => {
+                if s.len() != n {
+                    return Err(format!("{} surface samples, the settings say {n}", s.len()));
+                }
+                s.validate(&self.scene.mesh)
+                    .map_err(|e| format!("surface samples: {e}"))?;
+                return self.validate_range();
+            }
+            (kind, _) => {
+                return Err(format!(
+                    "the settings say {kind:?} light samples, the bake holds the other kind"
+                ))
+            }
+        }
         if b.samples.len() != n {
             return Err(format!(
                 "{} light samples, the settings say {n}",
                 b.samples.len()
             ));
         }
+        self.validate_range()?;
+        // 1e-5: f32 normalisation.
+        if let Some(i) = b
+            .samples
+            .dirs
+            .iter()
+            .position(|d| (d.length() - 1.0).abs() > 1e-5)
+        {
+            return Err(format!("light direction {i} is not unit"));
+        }
+        self.validate_solid_angles()
+    }
+
+    /// One cut per baked vertex, inside the mesh.
+    fn validate_range(&self) -> Result<(), String> {
+        let b = &self.bake;
         let range = self.vertex_range();
         if range.end > self.scene.mesh.vertex_count() || range.start > range.end {
             return Err(format!(
@@ -177,15 +212,12 @@ impl CutsBaked {
                 range.len()
             ));
         }
-        // 1e-5: f32 normalisation.
-        if let Some(i) = b
-            .samples
-            .dirs
-            .iter()
-            .position(|d| (d.length() - 1.0).abs() > 1e-5)
-        {
-            return Err(format!("light direction {i} is not unit"));
-        }
+        Ok(())
+    }
+
+    /// Finite non-negative solid angles summing to `4 pi`.
+    fn validate_solid_angles(&self) -> Result<(), String> {
+        let b = &self.bake;
         if let Some(i) = b
             .samples
             .solid_angles
@@ -206,5 +238,7 @@ impl CutsBaked {
     }
 }
 
+#[cfg(test)]
+mod local_tests;
 #[cfg(test)]
 mod tests;

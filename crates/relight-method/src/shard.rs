@@ -498,7 +498,10 @@ fn append_sh(sh: &mut ShBaked, p: ShBaked) {
 /// Append the cuts of part `p` to `c`: the parts must share their light samples and tree
 /// (the same settings and scene make the same ones).
 fn append_cuts(c: &mut crate::cuts::CutsBaked, p: crate::cuts::CutsBaked) -> Result<(), String> {
-    if p.bake.samples != c.bake.samples || p.bake.tree != c.bake.tree {
+    if p.bake.samples != c.bake.samples
+        || p.bake.surface != c.bake.surface
+        || p.bake.tree != c.bake.tree
+    {
         return Err("parts with different light samples or light trees".into());
     }
     c.bake.cuts.append(p.bake.cuts);

@@ -96,6 +96,20 @@ pub enum MitsubaError {
     },
 }
 
+/// A light of [`export_mitsuba_lit`] as the script reads it.
+fn light_json(l: &crate::light::PointLight) -> serde_json::Value {
+    match l.spot {
+        None => json!({
+            "type": "point", "position": l.position.to_array(), "intensity": l.intensity.to_array(),
+        }),
+        Some(s) => json!({
+            "type": "spot", "position": l.position.to_array(), "intensity": l.intensity.to_array(),
+            "direction": s.direction.to_array(), "cutoff_deg": s.cutoff_deg,
+            "beam_deg": s.cutoff_deg * crate::light::SPOT_BEAM_FRACTION,
+        }),
+    }
+}
+
 /// Export `scene` for `tools/mitsuba_reference.py` into `dir` (created if needed); returns
 /// the path of `scene.json`. `max_depth` has Mitsuba's meaning (2 = direct only, -1 =
 /// unlimited).
@@ -108,6 +122,23 @@ pub fn export_mitsuba(
     dir: &Path,
     spp: u32,
     max_depth: i32,
+) -> Result<PathBuf, MitsubaError> {
+    export_mitsuba_lit(scene, dir, spp, max_depth, &[])
+}
+
+/// [`export_mitsuba`] with point and spot `lights` besides the environment (Mitsuba's
+/// `point` and `spot` emitters: `intensity` in W/sr, a spot's `cutoff_angle` and
+/// `beam_width = 3/4` of it, as [`crate::light`] defines them). An all-black environment is
+/// left out of Mitsuba's scene (`env_black`).
+///
+/// # Errors
+/// As [`export_mitsuba`].
+pub fn export_mitsuba_lit(
+    scene: &Scene,
+    dir: &Path,
+    spp: u32,
+    max_depth: i32,
+    lights: &[crate::light::PointLight],
 ) -> Result<PathBuf, MitsubaError> {
     std::fs::create_dir_all(dir).map_err(|error| MitsubaError::Io {
         path: dir.to_path_buf(),
@@ -154,6 +185,9 @@ pub fn export_mitsuba(
         "spp": spp,
         "max_depth": max_depth,
         "hide_emitters": false,
+        "env_black": env.scale == 0.0
+            || (0..env.map.texel_count()).all(|i| env.map.texel(i).value == glam::Vec3::ZERO),
+        "lights": lights.iter().map(light_json).collect::<Vec<_>>(),
     });
     let path = dir.join("scene.json");
     let text = serde_json::to_string_pretty(&doc).map_err(MitsubaError::Json)?;

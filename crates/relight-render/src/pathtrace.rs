@@ -17,12 +17,17 @@
 //!   light leaks through shading-normal interpolation).
 //! * The environment is visible to camera rays when `show_background` (Mitsuba's
 //!   `hide_emitters = false`).
+//! * Point and spot lights ([`crate::light`], [`render_with_lights`]) are delta lights: reached
+//!   by next-event estimation only (one shadow ray per light and path vertex, no MIS: BSDF
+//!   sampling can never hit them), at the same path vertices as the environment's, so
+//!   `max_depth 2` is their direct light and `3` adds one indirect bounce, as in Mitsuba.
 //!
 //! Determinism: pixel `p = y * width + x` draws all its random numbers from its own stream
 //! `Rng::new(seed, p)`, so the image depends on the seed only, not on the thread count or
 //! scheduling.
 
 use crate::image::Image;
+use crate::light::PointLight;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use relight_scene::accel::{offset_ray_origin, Ray, RayCaster};
@@ -65,6 +70,25 @@ impl Default for PtSettings {
     }
 }
 
+impl PtSettings {
+    /// Check user input: `spp` in `1..=max_spp`, `max_depth` -1 (unlimited) or >= 0.
+    ///
+    /// # Errors
+    /// A message naming the option (`--spp`, `--max-depth`) and its range.
+    pub fn validate(&self, max_spp: u32) -> Result<(), String> {
+        if !(1..=max_spp).contains(&self.spp) {
+            return Err(format!("--spp {} is not in 1..={max_spp}", self.spp));
+        }
+        if self.max_depth < -1 {
+            return Err(format!(
+                "--max-depth {} is not -1 (unlimited) or >= 0",
+                self.max_depth
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Render the scene's camera view; see the module docs for the estimator.
 pub fn render(scene: &Scene, caster: &dyn RayCaster, s: &PtSettings) -> Image {
     render_with_variance(scene, caster, s).0
@@ -78,15 +102,26 @@ pub fn render_with_variance(
     caster: &dyn RayCaster,
     s: &PtSettings,
 ) -> (Image, Image) {
+    render_with_lights(scene, caster, s, &[])
+}
+
+/// [`render_with_variance`] with point and spot `lights` besides the environment (module
+/// docs; the lights are used as given: check them with [`PointLight::validated`]).
+pub fn render_with_lights(
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    s: &PtSettings,
+    lights: &[PointLight],
+) -> (Image, Image) {
     match s.threads {
         Some(n) => match rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))
             .build()
         {
-            Ok(pool) => pool.install(|| render_inner(scene, caster, s)),
-            Err(_) => render_inner(scene, caster, s),
+            Ok(pool) => pool.install(|| render_inner(scene, caster, s, lights)),
+            Err(_) => render_inner(scene, caster, s, lights),
         },
-        None => render_inner(scene, caster, s),
+        None => render_inner(scene, caster, s, lights),
     }
 }
 
@@ -99,9 +134,15 @@ struct Ctx<'a> {
     world_from_env: Mat3,
     max_depth: u32,
     show_background: bool,
+    lights: &'a [PointLight],
 }
 
-fn render_inner(scene: &Scene, caster: &dyn RayCaster, s: &PtSettings) -> (Image, Image) {
+fn render_inner(
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    s: &PtSettings,
+    lights: &[PointLight],
+) -> (Image, Image) {
     let frame = scene.camera.frame();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let ctx = Ctx {
@@ -116,6 +157,7 @@ fn render_inner(scene: &Scene, caster: &dyn RayCaster, s: &PtSettings) -> (Image
             s.max_depth as u32
         },
         show_background: s.show_background,
+        lights,
     };
     let bar = if s.progress {
         let b = ProgressBar::new(h as u64);
@@ -247,6 +289,26 @@ impl Ctx<'_> {
                             let w = power_heuristic(pdf_env, material.pdf(wi, wo));
                             result += throughput * f * le * (w / pdf_env);
                         }
+                    }
+                }
+            }
+
+            // Point and spot lights (delta: no MIS).
+            for light in self.lights {
+                let Some((e, d, dist)) = light.irradiance(p, ng) else {
+                    continue;
+                };
+                let wo = shading.to_local(d);
+                if wo.z <= 0.0 {
+                    continue;
+                }
+                let f = material.eval(wi, wo);
+                if f.max_element() > 0.0 {
+                    let shadow = Ray::new(offset_ray_origin(p, ng, d), d, 0.0, dist);
+                    if !self.caster.occluded(&shadow) {
+                        // eval includes the shading cosine; e holds the geometric one.
+                        let cos_g = ng.dot(d);
+                        result += throughput * f * (e / cos_g);
                     }
                 }
             }

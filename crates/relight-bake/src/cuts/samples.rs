@@ -65,8 +65,9 @@ fn random_rotation(seed: u64, stream: u64) -> Quat {
 }
 
 /// `n` environment light samples: unit directions (world frame) and the solid angle of each
-/// one's Voronoi cell. Deterministic for `(n, seed)`.
-#[derive(Clone, Debug, PartialEq)]
+/// one's Voronoi cell. Deterministic for `(n, seed)`. (`Default`: no samples, what a bake of
+/// surface samples holds here.)
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct EnvSamples {
     /// Unit direction of each sample (world frame).
     pub dirs: Vec<Vec3>,

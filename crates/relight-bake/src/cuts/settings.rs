@@ -26,6 +26,19 @@ pub enum LightTreeKind {
     DataDriven,
 }
 
+/// What the light samples are (sec. 4.1). A closed set.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum LightSampleKind {
+    /// Directions of a distant environment (rendered with `--env`).
+    #[default]
+    Environment,
+    /// Points spread by area over the surfaces, for a point or spot light moved at render
+    /// time with one bounce of indirect light (sec. 4.2; [`super::surface`]).
+    Surface,
+}
+
 /// Settings of a cuts bake: what a bundle records (serde) and, with the `cli` feature, the
 /// options of `relight bake --method cuts`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -35,9 +48,14 @@ pub enum LightTreeKind {
     command(next_help_heading = "Cuts bake (--method cuts)")
 )]
 pub struct CutsBakeSettings {
-    /// Environment light samples (the paper's 32K), `2..=MAX_LIGHTS`.
+    /// Light samples (the paper's 32K, directions or surface points), `2..=MAX_LIGHTS`.
     #[cfg_attr(feature = "cli", arg(long = "cut-lights", default_value_t = DEFAULT_SAMPLES as u32))]
     pub lights: u32,
+    /// Light samples: environment directions, or surface points for local lights
+    /// (`relight render --point-light`). Bundles from before this setting are environment.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long = "cut-samples", id = "cut_samples", value_enum, default_value_t = LightSampleKind::Environment))]
+    pub samples: LightSampleKind,
     /// `sigma` of Eq. 6: every cut node has `|C| var <= sigma^2` (the paper: 1.5-3), `>= 0`.
     #[cfg_attr(feature = "cli", arg(long = "cut-sigma", default_value_t = DEFAULT_SIGMA))]
     pub sigma: f32,
@@ -80,6 +98,7 @@ impl Default for CutsBakeSettings {
     fn default() -> Self {
         CutsBakeSettings {
             lights: DEFAULT_SAMPLES as u32,
+            samples: LightSampleKind::Environment,
             sigma: DEFAULT_SIGMA,
             function: CutFunction::Visibility,
             max_cut: DEFAULT_MAX_CUT as u32,

@@ -17,6 +17,7 @@
 //! directions carry the seed (they are the only random choice).
 
 use super::cut::{select_cut, NodeStats, SelectedCut, VertexCuts};
+use super::surface::SurfaceSamples;
 use super::tree::{split_groups, LightTree, PilotVectors};
 use crate::transport::{
     check_mesh_geometry, progress_bar, surface_ray, vertex_geometric_normals, with_threads,
@@ -63,12 +64,36 @@ pub struct CutParams {
     pub progress: bool,
 }
 
+/// What the light samples are: distant directions or points on the surfaces.
+#[derive(Clone, Copy, Debug)]
+pub enum LightTargets<'a> {
+    /// Unit directions of a distant environment ([`super::samples`]).
+    Directions(&'a [Vec3]),
+    /// Points on the scene's surfaces with normals and areas ([`super::surface`]).
+    Points(&'a SurfaceSamples),
+}
+
+impl LightTargets<'_> {
+    /// Number of light samples.
+    pub fn len(&self) -> usize {
+        match self {
+            LightTargets::Directions(d) => d.len(),
+            LightTargets::Points(p) => p.len(),
+        }
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
 /// Samples the visibility function of the vertices of one mesh towards a set of distant
-/// light directions.
+/// light directions or of surface points ([`LightTargets`]).
 pub struct VisibilitySampler<'a> {
     mesh: &'a TriMesh,
     caster: &'a dyn RayCaster,
-    dirs: &'a [Vec3],
+    targets: LightTargets<'a>,
     ng: Vec<Vec3>,
     function: CutFunction,
 }
@@ -76,9 +101,9 @@ pub struct VisibilitySampler<'a> {
 /// Per-thread buffers of [`VisibilitySampler::sample`].
 #[derive(Default)]
 pub struct Scratch {
-    rays: Vec<Ray>,
-    lights: Vec<u32>,
-    cosines: Vec<f32>,
+    pub(super) rays: Vec<Ray>,
+    pub(super) lights: Vec<u32>,
+    pub(super) cosines: Vec<f32>,
     occluded: Vec<bool>,
 }
 
@@ -94,11 +119,25 @@ impl<'a> VisibilitySampler<'a> {
         dirs: &'a [Vec3],
         function: CutFunction,
     ) -> Result<Self, BakeError> {
+        Self::with_targets(mesh, caster, LightTargets::Directions(dirs), function)
+    }
+
+    /// A sampler of `function` of the vertices of `mesh` towards `targets` (for points:
+    /// the function times the clamped geometric term, [`super::local`]).
+    ///
+    /// # Errors
+    /// [`BakeError::Scene`] for an inconsistent mesh.
+    pub fn with_targets(
+        mesh: &'a TriMesh,
+        caster: &'a dyn RayCaster,
+        targets: LightTargets<'a>,
+        function: CutFunction,
+    ) -> Result<Self, BakeError> {
         check_mesh_geometry(mesh)?;
         Ok(VisibilitySampler {
             mesh,
             caster,
-            dirs,
+            targets,
             ng: vertex_geometric_normals(mesh),
             function,
         })
@@ -110,7 +149,7 @@ impl<'a> VisibilitySampler<'a> {
     /// # Panics
     /// If `out.len()` differs from the number of directions or `v` is out of range.
     pub fn sample(&self, v: usize, out: &mut [f32], s: &mut Scratch) {
-        assert_eq!(out.len(), self.dirs.len());
+        assert_eq!(out.len(), self.targets.len());
         out.fill(0.0);
         let n = self.mesh.normals[v].normalize_or_zero();
         if n == Vec3::ZERO {
@@ -120,7 +159,14 @@ impl<'a> VisibilitySampler<'a> {
         s.rays.clear();
         s.lights.clear();
         s.cosines.clear();
-        for (i, &w) in self.dirs.iter().enumerate() {
+        let dirs = match self.targets {
+            LightTargets::Directions(d) => d,
+            LightTargets::Points(points) => {
+                super::local::point_rays(p, n, self.ng[v], points, self.function, s);
+                &[]
+            }
+        };
+        for (i, &w) in dirs.iter().enumerate() {
             let c = n.dot(w);
             if c > 0.0 {
                 s.rays.push(surface_ray(p, self.ng[v], w));
@@ -154,11 +200,11 @@ impl<'a> VisibilitySampler<'a> {
         params: &CutParams,
     ) -> Result<VertexCuts, BakeError> {
         self.check_range(&range)?;
-        if tree.light_count() != self.dirs.len() {
+        if tree.light_count() != self.targets.len() {
             return Err(BakeError::Settings(format!(
                 "light tree of {} lights for {} directions",
                 tree.light_count(),
-                self.dirs.len()
+                self.targets.len()
             )));
         }
         if params.max_nodes == 0 || !(params.sigma >= 0.0 && params.sigma.is_finite()) {
@@ -175,7 +221,7 @@ impl<'a> VisibilitySampler<'a> {
                 .par_iter()
                 .map_init(
                     || {
-                        let values = vec![0.0f32; self.dirs.len()];
+                        let values = vec![0.0f32; self.targets.len()];
                         (Scratch::default(), values, NodeStats::default(), Vec::new())
                     },
                     |(scratch, values, stats, heap), &start| {
@@ -183,8 +229,13 @@ impl<'a> VisibilitySampler<'a> {
                         for v in start..(start + CHUNK).min(range.end) {
                             self.sample(v, values, scratch);
                             stats.compute(tree, values);
-                            let cut: SelectedCut =
-                                select_cut(tree, stats, sigma2, params.max_nodes, heap);
+                            let cut: SelectedCut = select_cut(
+                                tree,
+                                stats,
+                                self.threshold(sigma2, stats, tree),
+                                params.max_nodes,
+                                heap,
+                            );
                             part.push(tree, &cut, stats);
                         }
                         self.progress(&pb, part.vertex_count());
@@ -195,6 +246,20 @@ impl<'a> VisibilitySampler<'a> {
         })?;
         pb.finish_and_clear();
         Ok(concat(parts))
+    }
+
+    /// The threshold of Eq. 6 for one vertex: `sigma^2` for directions (a function in
+    /// `[0, 1]` of order 1); for surface points `sigma^2 <g>^2`, `<g>` the vertex's mean over
+    /// all samples, i.e. Eq. 6 on `g / <g>` (the geometric term is of order `A_s / d^2`,
+    /// ~1e-3 and less, so an absolute `sigma` would leave every cut at the root).
+    fn threshold(&self, sigma2: f32, stats: &NodeStats, tree: &LightTree) -> f32 {
+        match self.targets {
+            LightTargets::Directions(_) => sigma2,
+            LightTargets::Points(_) => {
+                let m = stats.mean[tree.root() as usize];
+                sigma2 * m * m
+            }
+        }
     }
 
     fn progress(&self, pb: &ProgressBar, n: usize) {
@@ -237,7 +302,7 @@ impl<'a> VisibilitySampler<'a> {
         }
         let groups = self.vertex_groups(clusters.min(nv), k);
         let m = groups.len();
-        let n = self.dirs.len();
+        let n = self.targets.len();
         let mut data = vec![0.0f32; n * m];
         let pb = progress_bar(progress, nv as u64, "cuts pilot");
         // Clusters in batches: a batch's columns are computed in parallel, then scattered

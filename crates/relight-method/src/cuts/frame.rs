@@ -1,12 +1,19 @@
 //! The `cuts` frame: the environment's light samples and illumination cut (once per map or
-//! rotation), then per camera the per-pixel merge of `relight_render::shade_cuts`.
+//! rotation), then per camera the per-pixel merge of `relight_render::shade_cuts`. Over a
+//! bake of surface samples: the point light's lighting of the samples and its light cut
+//! (once per light position, [`CutsFrame::set_point_light`]), then per camera the direct
+//! light and one bounce of `relight_render::shade_local`.
 
+use super::local::{LocalTerms, PointLightArgs};
 use super::CutsBaked;
 use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA};
 use relight_bake::cuts::samples::sample_power;
+use relight_render::light::PointLight;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
+use relight_render::shade_local::{LocalLighting, LocalShader};
+use relight_scene::accel::RayCaster;
 use relight_scene::camera::Camera;
 use relight_scene::error::SceneError;
 use relight_scene::io::PathPolicy;
@@ -69,6 +76,12 @@ pub struct CutsFrameSettings {
     /// alone: slower, and closer to the reference at large light cuts (docs/RESULTS.md §11).
     #[cfg_attr(feature = "cli", arg(long))]
     pub cluster_spread: bool,
+    /// The point or spot light of a bake of surface samples.
+    #[cfg_attr(feature = "cli", command(flatten))]
+    pub light: PointLightArgs,
+    /// Terms of local lighting: all, direct (the light alone) or indirect (one bounce).
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = LocalTerms::All))]
+    pub local_terms: LocalTerms,
 }
 
 impl Default for CutsFrameSettings {
@@ -80,6 +93,8 @@ impl Default for CutsFrameSettings {
             material: None,
             material_allow_outside_paths: false,
             cluster_spread: false,
+            light: PointLightArgs::default(),
+            local_terms: LocalTerms::All,
         }
     }
 }
@@ -90,6 +105,16 @@ pub struct CutsFrame<'a> {
     shader: CutsShader<'a>,
     settings: CutsFrameSettings,
     lighting: Option<(LightCut, Environment)>,
+    /// Over a bake of surface samples: the shadow-ray caster, the light, its lighting.
+    local: Option<LocalState>,
+}
+
+/// The local-lighting part of a [`CutsFrame`].
+struct LocalState {
+    caster: Box<dyn RayCaster>,
+    materials: Vec<Material>,
+    light: PointLight,
+    lighting: Option<LocalLighting>,
 }
 
 impl<'a> CutsFrame<'a> {
@@ -142,6 +167,30 @@ impl<'a> CutsFrame<'a> {
                 s.light_cut, s.light_sigma
             )));
         }
+        let local = match (s.light.light()?, baked.bake.surface.is_some()) {
+            (None, false) => None,
+            (Some(_), false) => {
+                return Err(MethodError::Settings(
+                    "--point-light needs a bake of surface samples (relight bake --method cuts --cut-samples surface); this bundle holds environment directions, lit with --env"
+                        .into(),
+                ))
+            }
+            (None, true) => {
+                return Err(MethodError::Settings(
+                    "this bundle holds surface samples (local lights): give --point-light x,y,z and --light-intensity r,g,b (the environment does not light it)"
+                        .into(),
+                ))
+            }
+            (Some(light), true) => {
+                let caster = relight_scene::accel::build_default(&baked.scene.mesh);
+                Some(LocalState {
+                    caster,
+                    materials: materials.clone(),
+                    light,
+                    lighting: None,
+                })
+            }
+        };
         Ok(CutsFrame {
             baked,
             shader: CutsShader::new(
@@ -154,8 +203,49 @@ impl<'a> CutsFrame<'a> {
             .with_cluster_spread(s.cluster_spread),
             settings: s.clone(),
             lighting: None,
+            local,
         })
     }
+
+    /// Move the point light of a bake of surface samples: its lighting of the samples and
+    /// its light cut are recomputed (before the next [`Frame::render`]).
+    ///
+    /// # Errors
+    /// [`MethodError::Settings`] for a bundle of environment directions, a bad light or
+    /// one inside geometry.
+    pub fn set_point_light(&mut self, light: PointLight) -> Result<PrepareTimes, MethodError> {
+        let baked = self.baked;
+        let s = self.settings;
+        let Some(state) = self.local.as_mut() else {
+            return Err(MethodError::Settings(
+                "a point light needs a bake of surface samples (--cut-samples surface)".into(),
+            ));
+        };
+        let shader = LocalShader::new(
+            &baked.scene.mesh,
+            state.materials.clone(),
+            &baked.bake,
+            baked.settings.function,
+            state.caster.as_ref(),
+        )
+        .map_err(|e| MethodError::Settings(e.to_string()))?;
+        let lighting = shader
+            .prepare(light, s.light_sigma, s.light_cut)
+            .map_err(MethodError::Settings)?;
+        let times = PrepareTimes {
+            environment_ms: lighting.sample_ms,
+            shade_ms: lighting.cut_ms,
+        };
+        state.light = lighting.light;
+        state.lighting = Some(lighting);
+        Ok(times)
+    }
+}
+
+/// Whether `env` sends no light (scale 0 or every texel black).
+fn is_black(env: &Environment) -> bool {
+    env.scale == 0.0
+        || (0..env.map.texel_count()).all(|i| env.map.texel(i).value == glam::Vec3::ZERO)
 }
 
 impl Frame for CutsFrame<'_> {
@@ -164,6 +254,17 @@ impl Frame for CutsFrame<'_> {
     }
 
     fn set_environment(&mut self, env: &Environment) -> Result<PrepareTimes, MethodError> {
+        if let Some(state) = &self.local {
+            if !is_black(env) {
+                return Err(MethodError::Environment(
+                    "a bake of surface samples is lit by its point light only: the environment must be black (a constant [0, 0, 0])"
+                        .into(),
+                ));
+            }
+            self.lighting = None;
+            let light = state.light;
+            return self.set_point_light(light);
+        }
         let t0 = Instant::now();
         let samples = &self.baked.bake.samples;
         let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
@@ -185,6 +286,30 @@ impl Frame for CutsFrame<'_> {
     }
 
     fn render(&self, camera: &Camera, opts: &FrameOptions) -> FrameOutput {
+        if let Some(state) = &self.local {
+            let lighting = state
+                .lighting
+                .as_ref()
+                .expect("set_environment before render");
+            let t0 = Instant::now();
+            let shader = LocalShader::new(
+                &self.baked.scene.mesh,
+                state.materials.clone(),
+                &self.baked.bake,
+                self.baked.settings.function,
+                state.caster.as_ref(),
+            )
+            .expect("checked by set_point_light");
+            let img = shader.render(
+                lighting,
+                camera,
+                &RasterOptions {
+                    supersample: opts.supersample,
+                },
+                self.settings.local_terms.terms(),
+            );
+            return FrameOutput::rasterised_since(img.image, t0);
+        }
         let (light, env) = self
             .lighting
             .as_ref()
@@ -203,6 +328,29 @@ impl Frame for CutsFrame<'_> {
 
     fn summary(&self) -> String {
         let c = &self.baked.bake.cuts;
+        if let Some(state) = &self.local {
+            let cut = state.lighting.as_ref().map_or(String::new(), |l| {
+                format!(
+                    ", light cut {} nodes (error bound {}), lighting {:.1} ms + cut {:.1} ms",
+                    l.cut.len(),
+                    if l.cut.error_bound_met {
+                        "met"
+                    } else {
+                        "not met"
+                    },
+                    l.sample_ms,
+                    l.cut_ms
+                )
+            });
+            return format!(
+                "cuts (local light at {}, {:?}): {} vertices, {} surface samples, mean visibility cut {:.1} nodes{cut}",
+                state.light.position,
+                self.settings.local_terms,
+                self.baked.scene.mesh.vertex_count(),
+                self.baked.settings.lights,
+                c.mean_len()
+            );
+        }
         let light = self.lighting.as_ref().map_or(String::new(), |(l, _)| {
             format!(
                 ", light cut {} nodes (error bound {})",

@@ -8,19 +8,33 @@
 //!   nodes `cuts_index[offsets[v]..offsets[v + 1]]`; leftmost leaves are the tree's, not stored;
 //! * `cuts_value [E, 2]` (U8): each node's quantised mean, a little-endian u16;
 //! * `cuts_capped [K]` (U32): the vertices (of the baked range) whose cut hit the cap.
+//!
+//! A bake of surface samples (local lights, settings `samples: "surface"`) holds, instead of
+//! `cuts_dirs` and `cuts_solid_angles`: `cuts_positions [N, 3]`, `cuts_normals [N, 3]`,
+//! `cuts_areas [N]` (F32 always: the areas must sum to the scene's area) and
+//! `cuts_triangles [N]` (U32); the tree is rebuilt over the positions.
+//!
+//! **Layout version** (metadata `cuts_version`): [`CUTS_VERSION`] = 2 since surface samples;
+//! bundles without the key are version 1 (environment only: their settings have no
+//! `samples` and read as environment). A version above this reader's is refused by name
+//! rather than misread.
 
 use super::CutsBaked;
 use crate::store::{flat3, unflat3, BakedScene, TensorReader};
 use crate::MethodError;
 use relight_bake::cuts::cut::VertexCuts;
 use relight_bake::cuts::samples::EnvSamples;
+use relight_bake::cuts::surface::SurfaceSamples;
 use relight_bake::cuts::tree::LightTree;
-use relight_bake::cuts::{CutsBake, CutsBakeSettings};
+use relight_bake::cuts::{CutsBake, CutsBakeSettings, LightSampleKind};
 use relight_bundle::{Bundle, DType, Tensor};
 use std::path::Path;
 
 /// The method name in bundles.
 const METHOD: &str = "cuts";
+
+/// Layout version of `cuts` bundles written by this version (module docs).
+pub const CUTS_VERSION: u32 = 2;
 
 /// The bundle of a `cuts` bake.
 ///
@@ -30,13 +44,28 @@ const METHOD: &str = "cuts";
 pub fn store(b: &CutsBaked) -> Result<Bundle, MethodError> {
     let mut out = Bundle::new();
     b.scene.store(&mut out, METHOD, &b.settings, &b.record)?;
+    out.metadata
+        .insert("cuts_version".into(), CUTS_VERSION.to_string());
     let (s, c) = (&b.bake.samples, &b.bake.cuts);
-    let n = s.len();
-    out.insert("cuts_dirs", Tensor::from_f32(vec![n, 3], &flat3(&s.dirs)));
-    out.insert(
-        "cuts_solid_angles",
-        crate::store::float_tensor(vec![n], &s.solid_angles, b.record.f16),
-    );
+    let n = b.bake.tree.light_count();
+    if let Some(p) = &b.bake.surface {
+        out.insert(
+            "cuts_positions",
+            Tensor::from_f32(vec![n, 3], &flat3(&p.positions)),
+        );
+        out.insert(
+            "cuts_normals",
+            Tensor::from_f32(vec![n, 3], &flat3(&p.normals)),
+        );
+        out.insert("cuts_areas", Tensor::from_f32(vec![n], &p.areas));
+        out.insert("cuts_triangles", Tensor::from_u32(vec![n], &p.triangles));
+    } else {
+        out.insert("cuts_dirs", Tensor::from_f32(vec![n, 3], &flat3(&s.dirs)));
+        out.insert(
+            "cuts_solid_angles",
+            crate::store::float_tensor(vec![n], &s.solid_angles, b.record.f16),
+        );
+    }
     out.insert(
         "cuts_leaf_order",
         Tensor::from_u32(vec![n], &b.bake.tree.lights_in_order()),
@@ -86,17 +115,49 @@ pub fn load(b: &Bundle, path: &Path) -> Result<CutsBaked, MethodError> {
     if method != METHOD {
         return Err(r.invalid(format!("holds a '{method}' bake, not '{METHOD}'")));
     }
+    let version = match b.metadata.get("cuts_version") {
+        None => 1,
+        Some(v) => v
+            .parse::<u32>()
+            .map_err(|_| r.invalid(format!("metadata 'cuts_version' {v:?} is not a number")))?,
+    };
+    if version > CUTS_VERSION {
+        return Err(r.invalid(format!(
+            "cuts layout version {version} is newer than this relight's {CUTS_VERSION}: update relight to read it"
+        )));
+    }
     let settings: CutsBakeSettings = r.json("settings")?;
+    if version < 2 && settings.samples != LightSampleKind::Environment {
+        return Err(r.invalid("cuts layout version 1 holds environment samples only"));
+    }
     settings
         .validate()
         .map_err(|e| r.invalid(format!("metadata 'settings': {e}")))?;
     let record = r.record()?;
     let scene = BakedScene::load(&r)?;
     let n = settings.lights as usize;
-    let dirs = unflat3(&r.f32s("cuts_dirs", &[n, 3])?);
-    let solid_angles = r.f32s("cuts_solid_angles", &[n])?;
+    let (samples, surface) = match settings.samples {
+        LightSampleKind::Environment => {
+            let dirs = unflat3(&r.f32s("cuts_dirs", &[n, 3])?);
+            let solid_angles = r.f32s("cuts_solid_angles", &[n])?;
+            (EnvSamples { dirs, solid_angles }, None)
+        }
+        LightSampleKind::Surface => {
+            let surface = SurfaceSamples {
+                positions: unflat3(&r.f32s("cuts_positions", &[n, 3])?),
+                normals: unflat3(&r.f32s("cuts_normals", &[n, 3])?),
+                areas: r.f32s("cuts_areas", &[n])?,
+                triangles: r.u32s("cuts_triangles", &[n])?,
+            };
+            (EnvSamples::default(), Some(surface))
+        }
+    };
+    let positions = match &surface {
+        Some(s) => &s.positions,
+        None => &samples.dirs,
+    };
     let order = r.u32s("cuts_leaf_order", &[n])?;
-    let tree = LightTree::from_leaf_order(&dirs, &order)
+    let tree = LightTree::from_leaf_order(positions, &order)
         .map_err(|e| r.invalid(format!("tensor 'cuts_leaf_order': {e}")))?;
     let rows = r.rows("cuts_offsets")?;
     let offsets = r.u32s("cuts_offsets", &[rows])?;
@@ -130,7 +191,8 @@ pub fn load(b: &Bundle, path: &Path) -> Result<CutsBaked, MethodError> {
     let baked = CutsBaked {
         scene,
         bake: CutsBake {
-            samples: EnvSamples { dirs, solid_angles },
+            samples,
+            surface,
             tree,
             cuts,
         },
