@@ -12,7 +12,8 @@
 //!   pixel square (a box filter of one pixel, Mitsuba's `<rfilter type="box"/>`).
 //! * Materials are one-sided and are evaluated in the shading frame of the interpolated vertex
 //!   normal, or of the normal map's normal; texture maps set the material's parameters at the
-//!   hit (`relight_scene::material::maps::shading_at`, shared with the cuts renderer). A direction (towards the viewer or the light) whose side of the *geometric* normal
+//!   hit (`relight_scene::material::maps::shading_at`, shared with the cuts renderer). A
+//!   direction (towards the viewer or the light) whose side of the *geometric* normal
 //!   disagrees with its side of the shading normal ends the path / contributes nothing (no
 //!   light leaks through shading-normal interpolation).
 //! * The environment is visible to camera rays when `show_background` (Mitsuba's

@@ -46,6 +46,7 @@ fn room() -> Scene {
     b.material_ids = vec![0; b.indices.len()];
     mesh.append(&b, 0);
     Scene {
+        maps: Default::default(),
         mesh,
         materials: vec![
             Material::Lambert {

@@ -93,6 +93,7 @@ fn fixture(function: CutFunction) -> Fixture {
 
 fn reference(f: &Fixture, light: PointLight, max_depth: i32, spp: u32) -> (Image, f64) {
     let scene = Scene {
+        maps: Default::default(),
         mesh: f.mesh.clone(),
         materials: f.materials.clone(),
         env: Environment::new(EnvMap::constant(Vec3::ZERO)),
