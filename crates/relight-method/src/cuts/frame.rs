@@ -18,6 +18,7 @@ use relight_scene::camera::Camera;
 use relight_scene::error::SceneError;
 use relight_scene::io::PathPolicy;
 use relight_scene::material::maps::{MaterialDesc, MaterialMaps, SceneMaps};
+use relight_scene::material::Material;
 use relight_scene::scene::Environment;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -215,7 +216,7 @@ impl<'a> CutsFrame<'a> {
     /// one inside geometry.
     pub fn set_point_light(&mut self, light: PointLight) -> Result<PrepareTimes, MethodError> {
         let baked = self.baked;
-        let s = self.settings;
+        let (light_sigma, light_cut) = (self.settings.light_sigma, self.settings.light_cut);
         let Some(state) = self.local.as_mut() else {
             return Err(MethodError::Settings(
                 "a point light needs a bake of surface samples (--cut-samples surface)".into(),
@@ -230,7 +231,7 @@ impl<'a> CutsFrame<'a> {
         )
         .map_err(|e| MethodError::Settings(e.to_string()))?;
         let lighting = shader
-            .prepare(light, s.light_sigma, s.light_cut)
+            .prepare(light, light_sigma, light_cut)
             .map_err(MethodError::Settings)?;
         let times = PrepareTimes {
             environment_ms: lighting.sample_ms,
