@@ -270,21 +270,10 @@ impl<'a> CutsShader<'a> {
         }
     }
 
-    /// The BRDF factor of one merged cluster in the shading frame (see
-    /// [`CutsShader::shade_fragment`]).
+    /// The BRDF factor of one merged cluster in the shading frame ([`cluster_brdf`]).
     #[inline]
     fn brdf(&self, material: &MaterialEval, wi: Vec3, wo: Vec3) -> Vec3 {
-        match self.function {
-            CutFunction::VisibilityCosine => {
-                let wo = if wo.z >= HORIZON {
-                    wo
-                } else {
-                    Vec3::new(wo.x, wo.y, HORIZON).normalize()
-                };
-                material.eval(wi, wo) / wo.z
-            }
-            CutFunction::Visibility => material.eval(wi, wo),
-        }
+        cluster_brdf(self.function, material, wi, wo)
     }
 }
 
@@ -472,3 +461,28 @@ mod texture_tests;
 
 #[cfg(test)]
 mod tests;
+
+/// The BRDF factor of one merged cluster towards `wo` in the shading frame, for cuts holding
+/// `function` (see [`CutsShader::shade_fragment`]): the BRDF with its cosine over visibility
+/// cuts, without it (the cosine is in the cuts) over visibility-cosine cuts, `wo` then lifted
+/// to [`HORIZON`] where it dips below it. Shared with the local-light frame
+/// (`crate::shade_local`).
+#[inline]
+pub(crate) fn cluster_brdf(
+    function: CutFunction,
+    material: &MaterialEval,
+    wi: Vec3,
+    wo: Vec3,
+) -> Vec3 {
+    match function {
+        CutFunction::VisibilityCosine => {
+            let wo = if wo.z >= HORIZON {
+                wo
+            } else {
+                Vec3::new(wo.x, wo.y, HORIZON).normalize()
+            };
+            material.eval(wi, wo) / wo.z
+        }
+        CutFunction::Visibility => material.eval(wi, wo),
+    }
+}

@@ -44,9 +44,6 @@ use relight_scene::mesh::TriMesh;
 use relight_sphere::luminance;
 use std::time::Instant;
 
-/// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated.
-const HORIZON: f32 = 1e-3;
-
 /// Which terms a frame adds (the measurement split and the tests' controls).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Terms {
@@ -246,20 +243,11 @@ impl<'a> LocalShader<'a> {
         sum
     }
 
-    /// The BRDF factor of one cluster in the shading frame (module docs).
+    /// The BRDF factor of one cluster in the shading frame (module docs;
+    /// [`crate::shade_cuts::cluster_brdf`]).
     #[inline]
     fn brdf(&self, material: &MaterialEval, wi: Vec3, wo: Vec3) -> Vec3 {
-        match self.function {
-            CutFunction::VisibilityCosine => {
-                let wo = if wo.z >= HORIZON {
-                    wo
-                } else {
-                    Vec3::new(wo.x, wo.y, HORIZON).normalize()
-                };
-                material.eval(wi, wo) / wo.z
-            }
-            CutFunction::Visibility => material.eval(wi, wo),
-        }
+        crate::shade_cuts::cluster_brdf(self.function, material, wi, wo)
     }
 
     /// Render `camera` under the prepared light (`terms` of it), the background black:

@@ -131,7 +131,7 @@ pub(super) fn sections(data: &Option<PathBuf>, quick: bool) -> Result<Vec<Sectio
         view_level: 1,
         angular_threshold: 0.0,
         spatial_threshold: 0.0,
-        ..adaptive.clone()
+        ..adaptive
     };
     let mut bake = Section::new(
         format!(
