@@ -188,19 +188,24 @@ impl LightCut {
     }
 }
 
-/// Every node's mean direction weighted by `y` (one weight per light), summed up the
-/// post-order array (children precede their parent); the tree's own direction where the
-/// weights vanish or the weighted directions cancel (a mean shorter than 1e-3: a cluster
-/// about as symmetric as the whole sphere, whose direction means little either way); and
-/// each node's `cos theta_p = (5 R - 1) / 4` of the five-point rule (module docs), 1 where
-/// the weights vanish.
-fn weighted_directions(tree: &LightTree, y: &[f64]) -> (Vec<Vec3>, Vec<f32>) {
+/// Every node's `(sum_i w_i at(i), sum_i w_i)` over its leaves `i` (`at` of a leaf's node
+/// index, `w` indexed by light), summed up the post-order array (children precede their
+/// parent): the weighted means of directions ([`weighted_directions`]) and of positions
+/// (`super::local::weighted_positions`).
+///
+/// # Panics
+/// If `w` is shorter than the tree's light count.
+pub(crate) fn weighted_sums(
+    tree: &LightTree,
+    w: &[f64],
+    at: impl Fn(u32) -> Vec3,
+) -> Vec<([f64; 3], f64)> {
     let nodes = tree.nodes();
     let mut sums: Vec<([f64; 3], f64)> = Vec::with_capacity(nodes.len());
     for (i, node) in nodes.iter().enumerate() {
         let s = match node.kind {
             NodeKind::Leaf { light } => {
-                let (d, w) = (tree.direction(i as u32), y[light as usize]);
+                let (d, w) = (at(i as u32), w[light as usize]);
                 ([d.x as f64 * w, d.y as f64 * w, d.z as f64 * w], w)
             }
             NodeKind::Inner { left, right } => {
@@ -213,6 +218,17 @@ fn weighted_directions(tree: &LightTree, y: &[f64]) -> (Vec<Vec3>, Vec<f32>) {
         };
         sums.push(s);
     }
+    sums
+}
+
+/// Every node's mean direction weighted by `y` (one weight per light), summed up the
+/// post-order array (children precede their parent); the tree's own direction where the
+/// weights vanish or the weighted directions cancel (a mean shorter than 1e-3: a cluster
+/// about as symmetric as the whole sphere, whose direction means little either way); and
+/// each node's `cos theta_p = (5 R - 1) / 4` of the five-point rule (module docs), 1 where
+/// the weights vanish.
+fn weighted_directions(tree: &LightTree, y: &[f64]) -> (Vec<Vec3>, Vec<f32>) {
+    let sums = weighted_sums(tree, y, |i| tree.direction(i));
     let spread_cos = sums
         .iter()
         .map(|(s, w)| {

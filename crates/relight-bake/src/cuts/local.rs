@@ -32,7 +32,7 @@
 //! never hides it.
 
 use super::surface::SurfaceSamples;
-use super::tree::{LightTree, NodeKind};
+use super::tree::LightTree;
 use super::visibility::{CutFunction, Scratch};
 use crate::transport::surface_ray;
 use glam::Vec3;
@@ -100,24 +100,7 @@ pub(super) fn point_rays(
 /// # Panics
 /// If `weight` is shorter than the tree's light count.
 pub fn weighted_positions(tree: &LightTree, weight: &[f64]) -> Vec<Vec3> {
-    let nodes = tree.nodes();
-    let mut sums: Vec<([f64; 3], f64)> = Vec::with_capacity(nodes.len());
-    for (i, node) in nodes.iter().enumerate() {
-        let s = match node.kind {
-            NodeKind::Leaf { light } => {
-                let (c, w) = (tree.center(i as u32), weight[light as usize]);
-                ([c.x as f64 * w, c.y as f64 * w, c.z as f64 * w], w)
-            }
-            NodeKind::Inner { left, right } => {
-                let (a, b) = (sums[left as usize], sums[right as usize]);
-                (
-                    [a.0[0] + b.0[0], a.0[1] + b.0[1], a.0[2] + b.0[2]],
-                    a.1 + b.1,
-                )
-            }
-        };
-        sums.push(s);
-    }
+    let sums = super::light_cut::weighted_sums(tree, weight, |i| tree.center(i));
     sums.iter()
         .enumerate()
         .map(|(i, (s, w))| {
