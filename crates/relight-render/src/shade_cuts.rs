@@ -1,12 +1,21 @@
 //! Per-pixel shading of the `cuts` method (Cheslack-Postava et al. 2008, sec. 4.2; the bake
 //! is `relight_bake::cuts`).
 //!
-//! Deferred shading on [`raster::render_deferred`]: for every visible sample, the three
-//! visibility cuts of its triangle's corners, interpolated with the sample's barycentric
-//! weights, are merged in one traversal with the frame's illumination cut, and the sample's
-//! material is evaluated at each merged cluster's direction
-//! ([`relight_bake::cuts::merge::shade`], Eq. 5):
-//! `B = sum_k |C'_k| <L O>_k (sum_j b_j <v_j>_k) f(<w>_k)`.
+//! Deferred shading (Eq. 5): for every visible sample, the three visibility cuts of its
+//! triangle's corners, interpolated with the sample's barycentric weights, are merged with
+//! the frame's illumination cut (the traversal of sec. 3.2), and the sample's material is
+//! evaluated at each merged cluster's direction:
+//! `B = sum_k |C'_k| <L O>_k (sum_j b_j <v_j>_k) f(<w>_k)`. Three ways, one reference for
+//! the next:
+//! * [`CutsShader::render_per_fragment`]: the merge at every sample
+//!   ([`relight_bake::cuts::merge::shade`]), the paper's algorithm as written: the slow
+//!   reference;
+//! * [`CutsShader::render_merged`]: the merge once per triangle and band of rows
+//!   (`shade_cuts::triangle`), equal to it up to f32 rounding;
+//! * [`CutsShader::render`], the default: Lambert materials from per-corner lists, every
+//!   vertex's cut merged with the light cut once per light cut and the three corners' lists
+//!   summed per sample (`shade_cuts::corners`: the cosine is sampled at each corner's own
+//!   clusters; no further from the path tracer, tested), other materials as `render_merged`.
 //!
 //! The BRDF is the path tracer's: `Material::eval(wi, wo)` in the frame of the sample's
 //! interpolated shading normal, `wi` towards the camera (`relight_render::pathtrace` uses the
@@ -20,20 +29,24 @@
 //! stays the one baked with the vertex normals (the paper's approximation), with
 //! [`CutFunction::Visibility`] it follows the mapped normal as the path tracer's does.
 
+mod corners;
+mod triangle;
+
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
+use corners::CornerLists;
 use glam::Vec3;
-use relight_bake::cuts::cut::dequantise;
 use relight_bake::cuts::light_cut::LightCut;
-use relight_bake::cuts::merge::{merge_cuts, shade, CutKeys};
+use relight_bake::cuts::merge::shade;
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
 use relight_scene::material::maps::{shading_at, SceneMaps};
-use relight_scene::material::microfacet;
 use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
-use std::f32::consts::{FRAC_1_PI, PI};
+use std::f32::consts::FRAC_1_PI;
+use std::sync::{Arc, Mutex};
+use triangle::{TriangleCut, TRIANGLE_CUT};
 
 /// Smallest `cos theta_o` at which the BRDF without its cosine is evaluated (directions
 /// below are lifted to it; see [`CutsShader::shade_fragment`]).
@@ -52,6 +65,10 @@ pub struct CutsShader<'a> {
     function: CutFunction,
     /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
     spread: bool,
+    /// The corner lists of the last light cut rendered ([`CutsShader::prepare`]).
+    corners: Mutex<Option<Arc<LitCorners>>>,
+    /// Whether a material is Lambert (shaded from the corner lists).
+    has_lambert: bool,
 }
 
 impl<'a> CutsShader<'a> {
@@ -74,12 +91,16 @@ impl<'a> CutsShader<'a> {
         );
         CutsShader {
             mesh,
+            has_lambert: materials
+                .iter()
+                .any(|m| matches!(m, Material::Lambert { .. })),
             materials: materials.iter().copied().map(MaterialEval::new).collect(),
             constants: materials,
             maps: SceneMaps::default(),
             bake,
             function,
             spread: false,
+            corners: Mutex::new(None),
         }
     }
 
@@ -149,11 +170,17 @@ impl<'a> CutsShader<'a> {
     }
 
     /// Render `camera` under `light` (the environment drawn behind the objects if
-    /// `background`): [`raster::render_deferred_batched`], which hands over a triangle's
-    /// fragments together, so its merged cut ([`TriangleCut`]) is built once per triangle
-    /// and band of rows and summed per fragment. Equal to [`CutsShader::shade_fragment`] at
-    /// every fragment up to f32 rounding (tested); that per-fragment merge is the slow
-    /// reference.
+    /// `background`), the default frame, over [`raster::render_deferred_batched`] (a
+    /// triangle's fragments handed over together):
+    /// * triangles of a **Lambert** material from the corner lists: every vertex's cut merged
+    ///   once with `light` ([`CutsShader::prepare`], cached until the light cut changes) and,
+    ///   per fragment, the three corners' lists summed with the barycentric weights (Eq. 5
+    ///   summed by corner, module docs of `shade_cuts::corners`). Equal to the triangle merge
+    ///   over cuts holding the cosine (tested); over binary visibility the cosine is sampled
+    ///   at each corner's own clusters, no further from the path tracer (tested,
+    ///   docs/RESULTS.md §11);
+    /// * other materials as [`CutsShader::render_merged`] (for glossy lobes the corners'
+    ///   coarser clusters measured further from the path tracer).
     ///
     /// # Panics
     /// If `opts.supersample == 0` or the camera's image is empty.
@@ -168,7 +195,8 @@ impl<'a> CutsShader<'a> {
     }
 
     /// [`CutsShader::render`] stopped after `stage` (the time split of `relight bench`):
-    /// the fragments are black before [`CutsStage::Full`].
+    /// the fragments are black before [`CutsStage::Full`]. The corner lists are built first
+    /// if `light` is not the cached one.
     ///
     /// # Panics
     /// As [`CutsShader::render`].
@@ -180,16 +208,76 @@ impl<'a> CutsShader<'a> {
         opts: &RasterOptions,
         stage: CutsStage,
     ) -> Rendered {
+        let lit = self.has_lambert.then(|| self.prepared(light));
         let eye = Vec3::from_array(camera.origin);
         raster::render_deferred_batched(self.mesh, camera, background, opts, |tri, fs, out| {
             if stage == CutsStage::GBuffer {
                 return;
             }
+            let id = self.mesh.material_ids[tri as usize] as usize;
+            match &lit {
+                Some(lit) if matches!(self.constants[id], Material::Lambert { .. }) => {
+                    self.shade_corners(light, &lit.lists, tri, fs, eye, out)
+                }
+                _ => TRIANGLE_CUT.with_borrow_mut(|t| {
+                    t.build(self, light, tri);
+                    self.shade_triangle(light, t, tri, fs, eye, out);
+                }),
+            }
+        })
+    }
+
+    /// Merge every vertex's cut with `light` now (what [`CutsShader::render`] does on its
+    /// first frame under a new light cut: once per environment and rotation, independent of
+    /// the camera and the materials) and keep the lists for the next frames; `None` (nothing
+    /// built) when no material is Lambert.
+    pub fn prepare(&self, light: &LightCut) -> Option<CornerStats> {
+        self.has_lambert.then(|| {
+            let lit = self.prepared(light);
+            CornerStats {
+                mean_len: lit.lists.mean_len(),
+                bytes: lit.lists.bytes(),
+            }
+        })
+    }
+
+    /// The cached corner lists of `light`, built if the cache holds another light cut (or
+    /// none). The comparison is exact (every node, value and direction).
+    fn prepared(&self, light: &LightCut) -> Arc<LitCorners> {
+        let mut cache = self.corners.lock().unwrap_or_else(|e| e.into_inner());
+        match &*cache {
+            Some(lit) if lit.light == *light => lit.clone(),
+            _ => {
+                let lit = Arc::new(LitCorners {
+                    lists: CornerLists::build(&self.bake.cuts, light),
+                    light: light.clone(),
+                });
+                *cache = Some(lit.clone());
+                lit
+            }
+        }
+    }
+
+    /// The previous default frame: [`raster::render_deferred_batched`], which hands over a
+    /// triangle's fragments together, so its merged cut (the three vertex cuts and the light
+    /// cut, `shade_cuts::triangle`) is built once per triangle and band of rows and summed
+    /// per fragment. Equal to [`CutsShader::shade_fragment`] at every fragment up to f32
+    /// rounding (tested).
+    ///
+    /// # Panics
+    /// As [`CutsShader::render`].
+    pub fn render_merged(
+        &self,
+        light: &LightCut,
+        camera: &Camera,
+        background: Option<&Environment>,
+        opts: &RasterOptions,
+    ) -> Rendered {
+        let eye = Vec3::from_array(camera.origin);
+        raster::render_deferred_batched(self.mesh, camera, background, opts, |tri, fs, out| {
             TRIANGLE_CUT.with_borrow_mut(|t| {
                 t.build(self, light, tri);
-                if stage == CutsStage::Full {
-                    self.shade_triangle(light, t, tri, fs, eye, out);
-                }
+                self.shade_triangle(light, t, tri, fs, eye, out);
             })
         })
     }
@@ -210,6 +298,48 @@ impl<'a> CutsShader<'a> {
         raster::render_deferred(self.mesh, camera, background, opts, |f| {
             self.shade_fragment(light, f, eye)
         })
+    }
+
+    /// Eq. 5 summed by corner at each fragment of triangle `tri`, whose material is Lambert,
+    /// from the corner lists of `lit` (module docs of `shade_cuts::corners`):
+    /// `albedo / pi sum_j b_j sum_k P_jk max(0, n . w_jk)` (binary visibility), or
+    /// `albedo / pi sum_j b_j sum_k P_jk` with the cosine in the cuts. A fragment whose maps
+    /// made its material another model is shaded by the per-fragment merge.
+    fn shade_corners(
+        &self,
+        light: &LightCut,
+        lists: &CornerLists,
+        tri: u32,
+        fs: &[Fragment],
+        eye: Vec3,
+        out: &mut [Vec3],
+    ) {
+        let corners = self.mesh.indices[tri as usize];
+        for (f, o) in fs.iter().zip(out.iter_mut()) {
+            debug_assert_eq!(f.tri, tri);
+            let mut owned = None;
+            let (material, n) = self.material_at(f, &mut owned);
+            let view = (eye - f.position).normalize_or_zero();
+            if view.dot(n) <= 0.0 {
+                *o = Vec3::ZERO; // one-sided materials, as the path tracer's
+                continue;
+            }
+            let b = f.bary;
+            let by_corner = |sum: &dyn Fn(u32) -> Vec3| -> Vec3 {
+                sum(corners[0]) * b[0] + sum(corners[1]) * b[1] + sum(corners[2]) * b[2]
+            };
+            *o = match (*material.material(), self.function) {
+                // eval / cos = albedo / pi for every cluster: the sum factors per corner.
+                (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
+                    albedo * FRAC_1_PI * by_corner(&|v| lists.sum(v))
+                }
+                // eval = albedo / pi max(0, n . w): no frame needed.
+                (Material::Lambert { albedo }, CutFunction::Visibility) => {
+                    albedo * FRAC_1_PI * by_corner(&|v| lists.lambert(v, n))
+                }
+                _ => self.shade_fragment(light, f, eye),
+            };
+        }
     }
 
     /// Eq. 5 at each fragment of triangle `tri` from its merged cut `t`.
@@ -282,179 +412,31 @@ impl<'a> CutsShader<'a> {
 pub enum CutsStage {
     /// Rasterise the G-buffer and group its fragments by triangle only.
     GBuffer,
-    /// Also merge each triangle's cuts with the light cut.
-    Merge,
     /// Also shade every fragment: the frame.
     Full,
 }
 
-thread_local! {
-    /// Each rendering thread's [`TriangleCut`] (reused, so a frame allocates once per thread).
-    static TRIANGLE_CUT: std::cell::RefCell<TriangleCut> = Default::default();
+/// The corner lists of one light cut ([`CutsShader::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CornerStats {
+    /// Mean clusters per vertex (a vertex's cut merged with the light cut, clusters it does
+    /// not see dropped).
+    pub mean_len: f64,
+    /// Bytes of the lists.
+    pub bytes: usize,
 }
 
-/// Lanes of the per-fragment sums (independent partial sums the compiler can keep in one
-/// SIMD register each); a [`TriangleCut`]'s length is padded to a multiple of it.
-const LANES: usize = 8;
-
-/// One triangle's merged cut: the union of its three vertex cuts and the light cut (the
-/// traversal of sec. 3.2), with what the per-fragment sum of Eq. 5 needs of each cluster
-/// `k`: `|C'_k| <L O>_k`, the three corners' visibility means and the cluster's direction,
-/// as structure-of-arrays padded with zero clusters to a multiple of [`LANES`]. Clusters no
-/// corner sees, or that hold no light, are dropped (they add nothing).
-#[derive(Default)]
-struct TriangleCut {
-    /// `|C'_k| <L O>_k`, per colour channel.
-    power: [Vec<f32>; 3],
-    /// `<v_j>_k` of corners `j = 0, 1, 2`.
-    vis: [Vec<f32>; 3],
-    /// The cluster's mean direction ([`relight_bake::cuts::tree::LightTree::direction`]),
-    /// per axis.
-    dir: [Vec<f32>; 3],
-    /// The cluster's tree node (post-order index; [`LightCut::spread_average`]).
-    node: Vec<u32>,
-    /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
-    sums: [Vec3; 3],
-    /// Clusters of this triangle, padding included (the arrays may be longer).
-    len: usize,
-}
-
-impl TriangleCut {
-    /// Clusters, padding included.
-    fn len(&self) -> usize {
-        self.len
-    }
-
-    /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
-    /// grow, and are written by index; a merged cut is at most as long as its four cuts
-    /// together).
-    fn build(&mut self, shader: &CutsShader<'_>, light: &LightCut, tri: u32) {
-        self.sums = [Vec3::ZERO; 3];
-        let [a, b, c] = shader.mesh.indices[tri as usize];
-        let cuts = [
-            shader.bake.cuts.cut(a as usize),
-            shader.bake.cuts.cut(b as usize),
-            shader.bake.cuts.cut(c as usize),
-        ];
-        let bound = (light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>())
-            .next_multiple_of(LANES);
-        if self.power[0].len() < bound {
-            for a in [&mut self.power, &mut self.vis, &mut self.dir] {
-                a.iter_mut().for_each(|x| x.resize(bound, 0.0));
-            }
-        }
-        let keys = [
-            CutKeys::from(light),
-            cuts[0].into(),
-            cuts[1].into(),
-            cuts[2].into(),
-        ];
-        let mut n = 0;
-        let mut sums = [Vec3::ZERO; 3];
-        merge_cuts(keys, |node, pos| {
-            let q = [
-                cuts[0].value[pos[1]],
-                cuts[1].value[pos[2]],
-                cuts[2].value[pos[3]],
-            ];
-            let power = light.value[pos[0]] * node.leaves() as f32;
-            if q == [0; 3] || power == Vec3::ZERO {
-                return;
-            }
-            let dir = light.direction(node.index);
-            if self.node.len() < bound {
-                self.node.resize(bound, 0);
-            }
-            self.node[n] = node.index;
-            for j in 0..3 {
-                let v = dequantise(q[j]);
-                sums[j] += power * v;
-                self.vis[j][n] = v;
-                self.power[j][n] = power[j];
-                self.dir[j][n] = dir[j];
-            }
-            n += 1;
-        });
-        self.sums = sums;
-        self.len = n.next_multiple_of(LANES);
-        // Zero clusters pad the last lane group.
-        for a in [&mut self.power, &mut self.vis, &mut self.dir] {
-            a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
-        }
-    }
-
-    /// Cluster `k`'s power, visibility interpolated with `b`, and direction.
-    #[inline]
-    fn cluster(&self, k: usize, b: [f32; 3]) -> (Vec3, f32, Vec3) {
-        let at = |a: &[Vec<f32>; 3]| Vec3::new(a[0][k], a[1][k], a[2][k]);
-        let v = b[0] * self.vis[0][k] + b[1] * self.vis[1][k] + b[2] * self.vis[2][k];
-        (at(&self.power), v, at(&self.dir))
-    }
-
-    /// `sum_k power_k (b . vis_k) max(0, n . dir_k)`: Eq. 5 for a Lambert BRDF without its
-    /// `albedo / pi`, over [`LANES`] partial sums.
-    fn lambert_sum(&self, b: [f32; 3], n: Vec3) -> Vec3 {
-        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
-            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
-        }
-        let groups = self.len / LANES;
-        let (p, v, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
-        let mut acc = [[0.0f32; LANES]; 3];
-        for i in 0..groups {
-            for l in 0..LANES {
-                let c = (n.x * d[0][i][l] + n.y * d[1][i][l] + n.z * d[2][i][l]).max(0.0);
-                let w = (b[0] * v[0][i][l] + b[1] * v[1][i][l] + b[2] * v[2][i][l]) * c;
-                for ch in 0..3 {
-                    acc[ch][l] += p[ch][i][l] * w;
-                }
-            }
-        }
-        Vec3::from_array(acc.map(|a| a.iter().sum()))
-    }
-
-    /// `sum_k power_k (b . vis_k) f(v, dir_k)` for the GGX conductor of `Material::eval`
-    /// without its specular colour, `f = D(h) G1(v, h) G1(w, h) / (4 n.v)` (height-separable
-    /// Smith masking, `relight_scene::material::microfacet`), evaluated in world space over
-    /// [`LANES`] partial sums: `n . h`, `tan^2` of `w` from `n . w`, and `G1(v, h)`, which
-    /// depends on the fragment only, hoisted. `n . v > 0` (the caller's one-sided test).
-    fn ggx_sum(&self, b: [f32; 3], n: Vec3, v: Vec3, alpha: f32) -> Vec3 {
-        let a2 = {
-            let a = alpha.max(microfacet::MIN_ALPHA);
-            a * a
-        };
-        let ci = n.dot(v);
-        let g1 = |c: f32| {
-            let tan2 = a2 * (1.0 - c * c) / (c * c);
-            2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt())
-        };
-        // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
-        let k = g1(ci) / (4.0 * ci) / (PI * a2);
-        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
-            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
-        }
-        let (p, vis, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
-        let mut acc = [[0.0f32; LANES]; 3];
-        for i in 0..self.len / LANES {
-            for l in 0..LANES {
-                let w = Vec3::new(d[0][i][l], d[1][i][l], d[2][i][l]);
-                let co = n.dot(w);
-                let h = v + w;
-                let hn = n.dot(h) / h.length();
-                let s = (1.0 - hn * hn) / a2 + hn * hn;
-                let x = (b[0] * vis[0][i][l] + b[1] * vis[1][i][l] + b[2] * vis[2][i][l]) * g1(co)
-                    / (s * s);
-                let x = if co > 0.0 && hn > 0.0 { x } else { 0.0 };
-                for ch in 0..3 {
-                    acc[ch][l] += p[ch][i][l] * x;
-                }
-            }
-        }
-        Vec3::from_array(acc.map(|a| a.iter().sum())) * k
-    }
+/// The corner lists of a light cut, with the light cut they were built from.
+struct LitCorners {
+    light: LightCut,
+    lists: CornerLists,
 }
 
 #[cfg(test)]
 mod ward_tests;
+
+#[cfg(test)]
+mod corner_tests;
 
 #[cfg(test)]
 mod texture_tests;

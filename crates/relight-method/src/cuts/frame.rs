@@ -1,5 +1,6 @@
-//! The `cuts` frame: the environment's light samples and illumination cut (once per map or
-//! rotation), then per camera the per-pixel merge of `relight_render::shade_cuts`. Over a
+//! The `cuts` frame: the environment's light samples, illumination cut and the vertex cuts
+//! merged with it (once per map or rotation), then per camera the per-pixel sums of
+//! `relight_render::shade_cuts`. Over a
 //! bake of surface samples: the point light's lighting of the samples and its light cut
 //! (once per light position, [`CutsFrame::set_point_light`]), then per camera the direct
 //! light and one bounce of `relight_render::shade_local`.
@@ -279,6 +280,9 @@ impl Frame for CutsFrame<'_> {
             self.settings.light_cut,
         )
         .map_err(bad)?;
+        // Every vertex's cut merged with the light cut (the frame's corner lists), camera-
+        // and material-independent: here rather than in the first frame.
+        self.shader.prepare(&light);
         self.lighting = Some((light, env.clone()));
         Ok(PrepareTimes {
             environment_ms,

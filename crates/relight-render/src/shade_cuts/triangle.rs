@@ -1,0 +1,173 @@
+//! One triangle's merged cut (Cheslack-Postava et al. 2008, sec. 3.2 merge, sec. 4.2 Eq. 5):
+//! the per-triangle frame [`super::CutsShader::render_merged`], the merge of the three vertex
+//! cuts with the light cut done once per triangle and band of rows and summed per fragment.
+
+use super::corners::LANES;
+use super::CutsShader;
+use glam::Vec3;
+use relight_bake::cuts::cut::dequantise;
+use relight_bake::cuts::light_cut::LightCut;
+use relight_bake::cuts::merge::{merge_cuts, CutKeys};
+use relight_scene::material::microfacet;
+use std::f32::consts::PI;
+
+thread_local! {
+    /// Each rendering thread's [`TriangleCut`] (reused, so a frame allocates once per thread).
+    pub(super) static TRIANGLE_CUT: std::cell::RefCell<TriangleCut> = Default::default();
+}
+
+/// One triangle's merged cut: the union of its three vertex cuts and the light cut (the
+/// traversal of sec. 3.2), with what the per-fragment sum of Eq. 5 needs of each cluster
+/// `k`: `|C'_k| <L O>_k`, the three corners' visibility means and the cluster's direction,
+/// as structure-of-arrays padded with zero clusters to a multiple of [`LANES`]. Clusters no
+/// corner sees, or that hold no light, are dropped (they add nothing).
+#[derive(Default)]
+pub(super) struct TriangleCut {
+    /// `|C'_k| <L O>_k`, per colour channel.
+    power: [Vec<f32>; 3],
+    /// `<v_j>_k` of corners `j = 0, 1, 2`.
+    vis: [Vec<f32>; 3],
+    /// The cluster's mean direction ([`relight_bake::cuts::tree::LightTree::direction`]),
+    /// per axis.
+    dir: [Vec<f32>; 3],
+    /// The cluster's tree node (post-order index; [`LightCut::spread_average`]).
+    pub(super) node: Vec<u32>,
+    /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
+    pub(super) sums: [Vec3; 3],
+    /// Clusters of this triangle, padding included (the arrays may be longer).
+    len: usize,
+}
+
+impl TriangleCut {
+    /// Clusters, padding included.
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
+    /// grow, and are written by index; a merged cut is at most as long as its four cuts
+    /// together).
+    pub(super) fn build(&mut self, shader: &CutsShader<'_>, light: &LightCut, tri: u32) {
+        self.sums = [Vec3::ZERO; 3];
+        let [a, b, c] = shader.mesh.indices[tri as usize];
+        let cuts = [
+            shader.bake.cuts.cut(a as usize),
+            shader.bake.cuts.cut(b as usize),
+            shader.bake.cuts.cut(c as usize),
+        ];
+        let bound = (light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>())
+            .next_multiple_of(LANES);
+        if self.power[0].len() < bound {
+            for a in [&mut self.power, &mut self.vis, &mut self.dir] {
+                a.iter_mut().for_each(|x| x.resize(bound, 0.0));
+            }
+        }
+        let keys = [
+            CutKeys::from(light),
+            cuts[0].into(),
+            cuts[1].into(),
+            cuts[2].into(),
+        ];
+        let mut n = 0;
+        let mut sums = [Vec3::ZERO; 3];
+        merge_cuts(keys, |node, pos| {
+            let q = [
+                cuts[0].value[pos[1]],
+                cuts[1].value[pos[2]],
+                cuts[2].value[pos[3]],
+            ];
+            let power = light.value[pos[0]] * node.leaves() as f32;
+            if q == [0; 3] || power == Vec3::ZERO {
+                return;
+            }
+            let dir = light.direction(node.index);
+            if self.node.len() < bound {
+                self.node.resize(bound, 0);
+            }
+            self.node[n] = node.index;
+            for j in 0..3 {
+                let v = dequantise(q[j]);
+                sums[j] += power * v;
+                self.vis[j][n] = v;
+                self.power[j][n] = power[j];
+                self.dir[j][n] = dir[j];
+            }
+            n += 1;
+        });
+        self.sums = sums;
+        self.len = n.next_multiple_of(LANES);
+        // Zero clusters pad the last lane group.
+        for a in [&mut self.power, &mut self.vis, &mut self.dir] {
+            a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
+        }
+    }
+
+    /// Cluster `k`'s power, visibility interpolated with `b`, and direction.
+    #[inline]
+    pub(super) fn cluster(&self, k: usize, b: [f32; 3]) -> (Vec3, f32, Vec3) {
+        let at = |a: &[Vec<f32>; 3]| Vec3::new(a[0][k], a[1][k], a[2][k]);
+        let v = b[0] * self.vis[0][k] + b[1] * self.vis[1][k] + b[2] * self.vis[2][k];
+        (at(&self.power), v, at(&self.dir))
+    }
+
+    /// `sum_k power_k (b . vis_k) max(0, n . dir_k)`: Eq. 5 for a Lambert BRDF without its
+    /// `albedo / pi`, over [`LANES`] partial sums.
+    pub(super) fn lambert_sum(&self, b: [f32; 3], n: Vec3) -> Vec3 {
+        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
+            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
+        }
+        let groups = self.len / LANES;
+        let (p, v, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
+        let mut acc = [[0.0f32; LANES]; 3];
+        for i in 0..groups {
+            for l in 0..LANES {
+                let c = (n.x * d[0][i][l] + n.y * d[1][i][l] + n.z * d[2][i][l]).max(0.0);
+                let w = (b[0] * v[0][i][l] + b[1] * v[1][i][l] + b[2] * v[2][i][l]) * c;
+                for ch in 0..3 {
+                    acc[ch][l] += p[ch][i][l] * w;
+                }
+            }
+        }
+        Vec3::from_array(acc.map(|a| a.iter().sum()))
+    }
+
+    /// `sum_k power_k (b . vis_k) f(v, dir_k)` for the GGX conductor of `Material::eval`
+    /// without its specular colour, `f = D(h) G1(v, h) G1(w, h) / (4 n.v)` (height-separable
+    /// Smith masking, `relight_scene::material::microfacet`), evaluated in world space over
+    /// [`LANES`] partial sums: `n . h`, `tan^2` of `w` from `n . w`, and `G1(v, h)`, which
+    /// depends on the fragment only, hoisted. `n . v > 0` (the caller's one-sided test).
+    pub(super) fn ggx_sum(&self, b: [f32; 3], n: Vec3, v: Vec3, alpha: f32) -> Vec3 {
+        let a2 = {
+            let a = alpha.max(microfacet::MIN_ALPHA);
+            a * a
+        };
+        let ci = n.dot(v);
+        let g1 = |c: f32| {
+            let tan2 = a2 * (1.0 - c * c) / (c * c);
+            2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt())
+        };
+        // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
+        let k = g1(ci) / (4.0 * ci) / (PI * a2);
+        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
+            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
+        }
+        let (p, vis, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
+        let mut acc = [[0.0f32; LANES]; 3];
+        for i in 0..self.len / LANES {
+            for l in 0..LANES {
+                let w = Vec3::new(d[0][i][l], d[1][i][l], d[2][i][l]);
+                let co = n.dot(w);
+                let h = v + w;
+                let hn = n.dot(h) / h.length();
+                let s = (1.0 - hn * hn) / a2 + hn * hn;
+                let x = (b[0] * vis[0][i][l] + b[1] * vis[1][i][l] + b[2] * vis[2][i][l]) * g1(co)
+                    / (s * s);
+                let x = if co > 0.0 && hn > 0.0 { x } else { 0.0 };
+                for ch in 0..3 {
+                    acc[ch][l] += p[ch][i][l] * x;
+                }
+            }
+        }
+        Vec3::from_array(acc.map(|a| a.iter().sum())) * k
+    }
+}
