@@ -27,8 +27,9 @@
 //!     block of vertices against casting the same rays), extrapolated to the whole mesh; the
 //!     illumination cut at the budgets 128, 256, 512; the per-pixel merge kernel; light-tree
 //!     variants.
-//! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512) split into G-buffer,
-//!     per-triangle merge and shading, against the per-fragment merge in the same run.
+//! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512): the corner lists
+//!     (once per light cut), then the frame split into G-buffer and shading, against the
+//!     per-triangle and the per-fragment merge in the same run.
 //! 12. [`vmf_fit`]: the vMF material fit, EM (what the bake runs) against Levenberg-Marquardt
 //!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial

@@ -227,7 +227,8 @@ impl<'a> CutsShader<'a> {
         })
     }
 
-    /// Merge every vertex's cut with `light` now (what [`CutsShader::render`] does on its
+    /// Merge every vertex's cut with `light` now (the traversal of sec. 3.2 over two cuts;
+    /// what [`CutsShader::render`] does on its
     /// first frame under a new light cut: once per environment and rotation, independent of
     /// the camera and the materials) and keep the lists for the next frames; `None` (nothing
     /// built) when no material is Lambert.
@@ -248,6 +249,8 @@ impl<'a> CutsShader<'a> {
         match &*cache {
             Some(lit) if lit.light == *light => lit.clone(),
             _ => {
+                // The previous lists go first (a frame still holding them keeps them alive).
+                *cache = None;
                 let lit = Arc::new(LitCorners {
                     lists: CornerLists::build(&self.bake.cuts, light),
                     light: light.clone(),
@@ -416,7 +419,8 @@ pub enum CutsStage {
     Full,
 }
 
-/// The corner lists of one light cut ([`CutsShader::prepare`]).
+/// The corner lists of one light cut ([`CutsShader::prepare`]: each vertex's cut merged with
+/// it, sec. 3.2, for Eq. 5 summed by corner).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CornerStats {
     /// Mean clusters per vertex (a vertex's cut merged with the light cut, clusters it does

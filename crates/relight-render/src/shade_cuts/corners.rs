@@ -74,6 +74,9 @@ struct Part {
 
 impl CornerLists {
     /// Merge every cut of `cuts` with `light` (in parallel over vertices).
+    ///
+    /// # Panics
+    /// Debug builds: a cut of another light tree than `light`'s.
     pub(super) fn build(cuts: &VertexCuts, light: &LightCut) -> Self {
         let n = cuts.vertex_count();
         let parts = (0..n.div_ceil(CHUNK))
@@ -142,6 +145,12 @@ impl Part {
         };
         for v in range {
             let cut = cuts.cut(v);
+            debug_assert!(
+                cut.index
+                    .last()
+                    .is_some_and(|&i| (i as usize) < light.dirs.len()),
+                "vertex {v}: a cut of another tree than the light cut's"
+            );
             let mut sum = Vec3::ZERO;
             let mut k = 0;
             let first = out.groups.len();
