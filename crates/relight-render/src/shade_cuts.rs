@@ -249,10 +249,14 @@ impl<'a> CutsShader<'a> {
         match &*cache {
             Some(lit) if lit.light == *light => lit.clone(),
             _ => {
-                // The previous lists go first (a frame still holding them keeps them alive).
-                *cache = None;
+                // The previous lists' arrays are reused unless a frame still holds them (then
+                // they are dropped with it, never kept beside the new ones by the cache).
+                let reuse = cache
+                    .take()
+                    .and_then(|old| Arc::try_unwrap(old).ok())
+                    .map(|old| old.lists);
                 let lit = Arc::new(LitCorners {
-                    lists: CornerLists::build(&self.bake.cuts, light),
+                    lists: CornerLists::build(&self.bake.cuts, light, reuse),
                     light: light.clone(),
                 });
                 *cache = Some(lit.clone());

@@ -73,16 +73,19 @@ struct Part {
 }
 
 impl CornerLists {
-    /// Merge every cut of `cuts` with `light` (in parallel over vertices).
+    /// Merge every cut of `cuts` with `light` (in parallel over vertices), in the arrays of
+    /// `reuse` if given (the previous light cut's lists: no new pages to fault in and clear,
+    /// no reallocation once they are large enough).
     ///
     /// # Panics
     /// Debug builds: a cut of another light tree than `light`'s.
-    pub(super) fn build(cuts: &VertexCuts, light: &LightCut) -> Self {
+    pub(super) fn build(cuts: &VertexCuts, light: &LightCut, reuse: Option<Self>) -> Self {
         let n = cuts.vertex_count();
-        let parts = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| Part::build(cuts, light, c * CHUNK..((c + 1) * CHUNK).min(n)))
-            .collect();
+        let mut parts = reuse.map_or_else(Vec::new, |r| r.parts);
+        parts.resize_with(n.div_ceil(CHUNK), Part::default);
+        parts.par_iter_mut().enumerate().for_each(|(c, p)| {
+            p.fill(cuts, light, c * CHUNK..((c + 1) * CHUNK).min(n));
+        });
         CornerLists { parts }
     }
 
@@ -137,12 +140,14 @@ impl CornerLists {
 }
 
 impl Part {
-    /// The lists of vertices `range`.
-    fn build(cuts: &VertexCuts, light: &LightCut, range: std::ops::Range<usize>) -> Self {
-        let mut out = Part {
-            start: vec![0],
-            ..Default::default()
-        };
+    /// Replace the lists by those of vertices `range`.
+    fn fill(&mut self, cuts: &VertexCuts, light: &LightCut, range: std::ops::Range<usize>) {
+        let out = self;
+        out.start.clear();
+        out.start.push(0);
+        out.count.clear();
+        out.groups.clear();
+        out.sums.clear();
         for v in range {
             let cut = cuts.cut(v);
             debug_assert!(
@@ -178,6 +183,5 @@ impl Part {
             out.count.push(k as u32);
             out.sums.push(sum);
         }
-        out
     }
 }
