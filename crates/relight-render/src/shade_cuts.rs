@@ -457,7 +457,7 @@ impl TriangleCut {
 mod ward_tests;
 
 #[cfg(test)]
-mod texture_tests;
+pub(crate) mod texture_tests;
 
 #[cfg(test)]
 mod tests;
