@@ -222,15 +222,13 @@ fn run_scene(
                     material: material.map(Into::into),
                     ..Default::default()
                 };
+                let eval_opts = FrameOptions {
+                    supersample: 4,
+                    background: false,
+                };
                 let mut frame = baked.frame(&FrameSettings::Cuts(fs.clone()))?;
                 frame.set_environment(&scene.env)?;
-                let out = frame.render(
-                    &scene.camera,
-                    &FrameOptions {
-                        supersample: 4,
-                        background: false,
-                    },
-                );
+                let out = frame.render(&scene.camera, &eval_opts);
                 let frame_ms = out.times.vertex_ms + out.times.pixel_ms;
                 let mut cam512 = scene.camera;
                 (cam512.width, cam512.height) = (512, 512);
@@ -248,13 +246,7 @@ fn run_scene(
                         ..fs.clone()
                     }))?;
                     f.set_environment(&scene.env)?;
-                    let o = f.render(
-                        &scene.camera,
-                        &FrameOptions {
-                            supersample: 4,
-                            background: false,
-                        },
-                    );
+                    let o = f.render(&scene.camera, &eval_opts);
                     compare::metrics(&o.image, &r.mean, Some(&mask)).rel_rmse
                 };
                 output::image_set(
