@@ -39,7 +39,8 @@ pub(crate) struct SgGpuFrame<'a> {
 
 impl<'a> SgGpuFrame<'a> {
     pub fn new(gpu: &'a Gpu, baked: &'a SgBaked, s: &SgFrameSettings) -> Result<Self, GpuError> {
-        let renderer = SgRenderer::new(&baked.scene.mesh, &baked.bake);
+        let renderer =
+            SgRenderer::new(&baked.scene.mesh, &baked.bake).with_options(s.shade_options());
         let mut up = 0;
         let mesh = MeshBuffers::new(gpu, &baked.scene.mesh, &mut up)?;
         let raster = Raster::new(gpu, &mut up)?;
@@ -224,8 +225,8 @@ impl GpuFrame for SgGpuFrame<'_> {
             indirect_count: b.indirect.as_ref().map_or(0, |l| l.lobe_count) as u32,
             level_count: levels.len() as u32,
             scale: lighting.scale,
-            energy_blend: (opts.blend == LobeBlend::Energy) as u32,
-            match_lobes: opts.match_lobes as u32,
+            energy_blend: (opts.corners == LobeBlend::Energy) as u32,
+            match_lobes: opts.match_corners as u32,
             base_size: n as u32,
             ln_lambda,
         };

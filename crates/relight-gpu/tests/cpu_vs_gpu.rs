@@ -471,7 +471,10 @@ fn hybrid_frame_with_area_lights_matches_the_cpu_frame() {
 fn sg_frame_matches_the_cpu_frame() {
     let Some(gpu) = gpu() else { return };
     let (b, scene) = sg_bake();
-    let fs = FrameSettings::Sg(relight_method::sg::SgFrameSettings { prefilter_size: 64 });
+    let fs = FrameSettings::Sg(relight_method::sg::SgFrameSettings {
+        prefilter_size: 64,
+        ..Default::default()
+    });
     let c = cpu(&b, &fs, &scene, &opts());
     let g = gpu_render(&gpu, &b, &fs, &scene, &opts());
     // Per frame: the blended lobes (32 bytes each) and diffuse radiance (16) of every vertex.

@@ -6,7 +6,7 @@
 mod frame;
 mod store;
 
-pub use frame::{SgFrame, SgFrameSettings};
+pub use frame::{SgBlend, SgFrame, SgFrameSettings, SgMatch};
 pub use store::SG_LOBE_FLOATS;
 
 use crate::shard::Shard;

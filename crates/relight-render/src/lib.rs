@@ -8,6 +8,7 @@ pub mod decompose_picture;
 pub mod hybrid;
 pub mod image;
 pub mod light;
+pub mod mapped;
 pub mod mitsuba;
 pub mod pathtrace;
 pub mod plot;

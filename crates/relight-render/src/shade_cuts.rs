@@ -447,7 +447,7 @@ mod ward_tests;
 mod corner_tests;
 
 #[cfg(test)]
-mod texture_tests;
+pub(crate) mod texture_tests;
 
 #[cfg(test)]
 mod tests;

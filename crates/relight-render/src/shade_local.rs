@@ -7,14 +7,17 @@
 //! 1. **sample lighting**: the light's direct irradiance `E_s` at every surface sample
 //!    ([`relight_bake::cuts::surface`]), shadow-tested with one ray per sample (the paper's
 //!    shadow cube map, exact here), re-emitted diffusely: the sample's exitance
-//!    `l_s = rho_s E_s` with `rho_s` the diffuse albedo of its triangle's material
-//!    ([`Material::diffuse_albedo`]; the paper's assumption 3, "we do not handle glossy to
-//!    glossy transfer paths");
+//!    `l_s = rho_s E_s` with `rho_s` the diffuse albedo of its triangle's material at the
+//!    sample's point, texture maps applied ([`Material::diffuse_albedo`],
+//!    [`MappedMaterials::diffuse_albedo_at`]; the paper's assumption 3, "we do not handle
+//!    glossy to glossy transfer paths");
 //! 2. **tree and light cut**: the light tree's cluster means of `l` and the illumination cut
 //!    ([`LightCut::build`], error bound then intensity), and each node's position weighted by
 //!    its samples' luminance ([`weighted_positions`]).
 //!
-//! Per pixel ([`LocalShader::render`], deferred on [`raster::render_deferred`]):
+//! Per pixel ([`LocalShader::render`], deferred on [`raster::render_deferred`]), with the
+//! fragment's material and shading normal after its texture and normal maps
+//! ([`MappedMaterials::at`], the path tracer's lookup):
 //! * **direct**: `f(wi, wo) I(w) / d^2` towards the light with one shadow ray from the
 //!   fragment (the path tracer's test: `wo` above the shading and the geometric normal);
 //! * **one bounce**: the three vertex cuts interpolated with barycentric weights, merged with
@@ -27,6 +30,7 @@
 //!   estimator `sum_s f cos L_s cos_s A_s / d^2` (with its `1 / d^2` clamp).
 
 use crate::light::{LightError, PointLight};
+use crate::mapped::MappedMaterials;
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -39,6 +43,7 @@ use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::{CutsBake, CutsError};
 use relight_scene::accel::{offset_ray_origin, Ray, RayCaster};
 use relight_scene::camera::Camera;
+use relight_scene::material::maps::SceneMaps;
 use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_sphere::luminance;
@@ -80,7 +85,7 @@ pub struct LocalLighting {
 /// The local-lighting renderer over one whole-mesh bake of surface samples.
 pub struct LocalShader<'a> {
     mesh: &'a TriMesh,
-    materials: Vec<MaterialEval>,
+    materials: MappedMaterials,
     bake: &'a CutsBake,
     surface: &'a SurfaceSamples,
     caster: &'a dyn RayCaster,
@@ -116,12 +121,23 @@ impl<'a> LocalShader<'a> {
         }
         Ok(LocalShader {
             mesh,
-            materials: materials.into_iter().map(MaterialEval::new).collect(),
+            materials: MappedMaterials::new(materials),
             bake,
             surface,
             caster,
             function,
         })
+    }
+
+    /// With the materials' texture and normal maps (built over this shader's mesh): each
+    /// fragment is shaded with its mapped material and normal, and each surface sample
+    /// re-emits with the diffuse albedo at its point ([`MappedMaterials`], the path tracer's
+    /// lookup).
+    pub fn with_maps(self, maps: SceneMaps) -> Self {
+        LocalShader {
+            materials: self.materials.with_maps(maps),
+            ..self
+        }
     }
 
     /// Check `light` ([`PointLight::validated`]) and that it is not inside a closed object
@@ -147,8 +163,9 @@ impl<'a> LocalShader<'a> {
                 let Some((e, w, d)) = light.irradiance(x, n) else {
                     return Vec3::ZERO;
                 };
-                let tri = s.triangles[i] as usize;
-                let rho = self.material(tri).material().diffuse_albedo();
+                let rho = self
+                    .materials
+                    .diffuse_albedo_at(self.mesh, s.triangles[i], x);
                 if rho == Vec3::ZERO {
                     return Vec3::ZERO;
                 }
@@ -191,14 +208,11 @@ impl<'a> LocalShader<'a> {
         })
     }
 
-    fn material(&self, tri: usize) -> &MaterialEval {
-        &self.materials[self.mesh.material_ids[tri] as usize]
-    }
-
     /// Outgoing radiance of fragment `f` towards `eye` (module docs), the `terms` asked.
     pub fn shade_fragment(&self, l: &LocalLighting, f: &Fragment, eye: Vec3, terms: Terms) -> Vec3 {
-        let material = self.material(f.tri as usize);
-        let frame = material.material().shading_frame(f.shading_normal);
+        let mut owned = None;
+        let (material, n) = self.materials.at(self.mesh, f, &mut owned);
+        let frame = material.material().shading_frame(n);
         let view = (eye - f.position).normalize_or_zero();
         let wi = frame.to_local(view);
         if wi.z <= 0.0 || view.dot(f.geometric_normal) <= 0.0 {
@@ -350,9 +364,9 @@ impl TriangleMerge {
 
     /// The one-bounce term at fragment `f` (as [`LocalShader::shade_fragment`]'s).
     fn shade(&self, shader: &LocalShader<'_>, f: &Fragment, eye: Vec3) -> Vec3 {
-        let material = shader.material(f.tri as usize);
+        let mut owned = None;
+        let (material, n) = shader.materials.at(shader.mesh, f, &mut owned);
         let view = (eye - f.position).normalize_or_zero();
-        let n = f.shading_normal;
         if view.dot(n) <= 0.0 || view.dot(f.geometric_normal) <= 0.0 {
             return Vec3::ZERO;
         }

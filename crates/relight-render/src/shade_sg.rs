@@ -23,19 +23,24 @@
 //!   frame (`Environment::env_from_world`), so the prefiltered chain is built once per map
 //!   and a runtime rotation only re-rotates the SH of the diffuse part. Rotating a blend is
 //!   the same as blending rotated axes (rotation is linear and keeps lengths).
-//! * Blending (views and pixels alike, [`ShadeOptions`]): by default (issue 10) lobes are
-//!   blended by **energy** ([`blend3_energy`]: the blend's integral `a int G` is the
-//!   barycentric mean of the corners', axis and sharpness weighted by each corner's energy)
-//!   after **matching** each corner's lobes to one reference corner's ([`match_corners`]:
-//!   the thesis' correspondence, section 2.2.2 and the flipping of section 3.4, enforced at
-//!   render time). [`ShadeOptions::PAPER`] is the thesis' blend (section 2.3): axes summed
-//!   and renormalised, amplitudes and sharpnesses **linear**, slot `k` with slot `k`
-//!   ([`blend3`]). Its energy `(sum w a) / (sum w lambda)` is a weighted mean of the corners'
-//!   `a_j / lambda_j` (weights `w_j lambda_j`), dominated by the sharpest corner: a broad
-//!   lobe blended with a sharp lobe of little energy (another Gaussian in the same slot)
-//!   keeps almost none of its energy, and a sharp lobe blended with a switched-off broad one
-//!   keeps almost all of it. With two lobes whose slots swap between neighbours that lost 17 % of the
-//!   teapot-dawn conductor's light and tripled its error (docs/RESULTS.md §8).
+//! * Blending ([`ShadeOptions`]): before any blend, each corner's lobes are **matched** to one
+//!   reference corner's ([`match_corners`]: the thesis' correspondence, section 2.2.2 and the
+//!   flipping of section 3.4, enforced at render time), across a vertex's three views and
+//!   across a triangle's three corners alike. The three **views** are then blended
+//!   **linearly** as the thesis does (section 2.3: axes summed and renormalised, amplitudes
+//!   and sharpnesses linear, [`blend3`]), and the three **corners** of a pixel's triangle by
+//!   **energy** ([`blend3_energy`]: the blend's integral `a int G` is the barycentric mean of
+//!   the corners', axis and sharpness weighted by each corner's energy). Why each choice,
+//!   measured on five scenes against Mitsuba (docs/RESULTS.md §8, issue 10): without the
+//!   view matching, two lobes whose slots swap between views lost 17 % of the teapot-dawn
+//!   conductor's light (error 13 % -> 56 % from one lobe to two); an energy blend across
+//!   views made more lobes *worse* on Fig. 3-5's shadowed highlight (28.5 / 61.9 / 45.9 % for
+//!   1 / 2 / 3 lobes; linear matched views: 33.4 / 19.7 / 19.9 %); the corners' energy
+//!   blend keeps a triangle's light the mean of its corners' where a corner's lobe is
+//!   switched off. [`ShadeOptions::PAPER`] is the thesis' frame (linear, slot `k` with slot
+//!   `k`) and [`ShadeOptions::ENERGY`] the default of 2026-12-01 (energy blends everywhere).
+//!   The linear blend's energy `(sum w a) / (sum w lambda)` is a weighted mean of the
+//!   corners' `a_j / lambda_j` (weights `w_j lambda_j`), dominated by the sharpest corner.
 //! * Radiance: `L(w) = scale * map(env_from_world w)`, as `Environment::radiance`.
 //! * Back-facing vertices keep the lobes of their view: the bake clamps views below the
 //!   horizon (see `relight_bake::sg`), so silhouettes stay continuous. The diffuse view
@@ -382,32 +387,49 @@ pub struct SgTimes {
     pub pixel_ms: f64,
 }
 
-/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]). The default (issue
-/// 10, chosen by the figures of docs/RESULTS.md §8) blends energies and matches lobes;
+/// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]): across the three
+/// nearest views at a vertex, and across a triangle's three corners at a pixel. The default
+/// (issue 10, chosen by the figures of docs/RESULTS.md §8; module docs) matches lobes
+/// everywhere, blends views linearly and corners by energy;
 /// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadeOptions {
-    /// The blend of the three views and of the three corners of a triangle.
-    pub blend: LobeBlend,
-    /// Permute each corner's lobes to the reference corner's before blending (two or more
-    /// lobes per component).
-    pub match_lobes: bool,
+    /// The blend of a vertex's three nearest views.
+    pub views: LobeBlend,
+    /// Permute each view's lobes to the reference view's before they are blended (two or
+    /// more lobes per component).
+    pub match_views: bool,
+    /// The blend of a triangle's three corners at a pixel.
+    pub corners: LobeBlend,
+    /// Permute each corner's lobes to the reference corner's before they are blended.
+    pub match_corners: bool,
 }
 
 impl ShadeOptions {
     /// The thesis' interpolation (section 2.3): linear parameters, slot `k` with slot `k`.
     pub const PAPER: ShadeOptions = ShadeOptions {
-        blend: LobeBlend::Linear,
-        match_lobes: false,
+        views: LobeBlend::Linear,
+        match_views: false,
+        corners: LobeBlend::Linear,
+        match_corners: false,
+    };
+    /// Energy blends of matched lobes across views and corners (the default of 2026-12-01).
+    pub const ENERGY: ShadeOptions = ShadeOptions {
+        views: LobeBlend::Energy,
+        match_views: true,
+        corners: LobeBlend::Energy,
+        match_corners: true,
     };
 }
 
 impl Default for ShadeOptions {
-    /// Energy blend and lobe matching (type docs).
+    /// Matched lobes, views blended linearly, corners by energy (module docs).
     fn default() -> Self {
         ShadeOptions {
-            blend: LobeBlend::Energy,
-            match_lobes: true,
+            views: LobeBlend::Linear,
+            match_views: true,
+            corners: LobeBlend::Energy,
+            match_corners: true,
         }
     }
 }
@@ -497,7 +519,8 @@ impl<'a> SgRenderer<'a> {
 
     /// Lobes per vertex: direct plus indirect.
     pub fn lobe_count(&self) -> usize {
-        self.bake.direct.lobe_count + self.bake.indirect.as_ref().map_or(0, |l| l.lobe_count)
+        let [d, i] = self.component_lobes();
+        d + i
     }
 
     /// The lobes of vertex `x` for world view direction `v` (unit, towards the viewer),
@@ -514,10 +537,10 @@ impl<'a> SgRenderer<'a> {
         let mut o = out.iter_mut();
         for lobes in std::iter::once(&self.bake.direct).chain(self.bake.indirect.as_ref()) {
             let l = [lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2)];
-            let p = self.permutations([j0, j1, j2], l);
+            let p = self.permutations(self.options.match_views, [j0, j1, j2], l);
             for k in 0..lobes.lobe_count {
                 *o.next().expect("out holds lobe_count lobes") = blend3_with(
-                    self.options.blend,
+                    self.options.views,
                     [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
                     b,
                 );
@@ -526,12 +549,17 @@ impl<'a> SgRenderer<'a> {
     }
 
     /// Per corner, the permutation of its lobes that matches the corner of lowest `id`
-    /// (identities when matching is off or there is one lobe).
+    /// (identities when `on` is false or there is one lobe).
     #[inline]
-    fn permutations(&self, id: [usize; 3], l: [&[SgLobe]; 3]) -> [[u8; blend::MAX_MATCH]; 3] {
+    fn permutations(
+        &self,
+        on: bool,
+        id: [usize; 3],
+        l: [&[SgLobe]; 3],
+    ) -> [[u8; blend::MAX_MATCH]; 3] {
         let identity = std::array::from_fn(|k| k as u8);
         let mut p = [identity; 3];
-        if self.options.match_lobes && l[0].len() > 1 {
+        if on && l[0].len() > 1 {
             let r = (0..3).min_by_key(|&c| id[c]).unwrap_or(0);
             for c in (0..3).filter(|&c| c != r) {
                 p[c] = match_corners(l[r], l[c]);
@@ -595,10 +623,11 @@ impl<'a> SgRenderer<'a> {
         let mut start = 0;
         for count in self.component_lobes() {
             let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);
-            let p = self.permutations(id, l);
+            start += count;
+            let p = self.permutations(self.options.match_corners, id, l);
             for k in 0..count {
                 let lobe = blend3_with(
-                    self.options.blend,
+                    self.options.corners,
                     [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
                     f.bary,
                 );
@@ -606,7 +635,6 @@ impl<'a> SgRenderer<'a> {
                     sum += integrate(&lobe);
                 }
             }
-            start += count;
         }
         sum
     }

@@ -247,7 +247,7 @@ impl App<'_> {
                 window_combo(ui, window);
             }
             FrameSettings::Hybrid(h) => hybrid_controls(ui, h, bake_order),
-            FrameSettings::Sg(SgFrameSettings { prefilter_size }) => {
+            FrameSettings::Sg(SgFrameSettings { prefilter_size, .. }) => {
                 egui::ComboBox::from_label("prefilter size")
                     .selected_text(prefilter_size.to_string())
                     .show_ui(ui, |ui| {

@@ -296,7 +296,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
 const SUPERSAMPLE: u32 = 4;
 
 /// Blends the lobes of three views `ids` with weights `w` as the frame does (matching to the
-/// view of lowest index when `shade.match_lobes`).
+/// view of lowest index when `shade.match_views`).
 fn blend_corners(
     shade: ShadeOptions,
     ids: [usize; 3],
@@ -305,14 +305,14 @@ fn blend_corners(
 ) -> Vec<SgLobe> {
     let identity: [u8; 10] = std::array::from_fn(|k| k as u8);
     let mut p = [identity; 3];
-    if shade.match_lobes && l[0].len() > 1 {
+    if shade.match_views && l[0].len() > 1 {
         let r = (0..3).min_by_key(|&c| ids[c]).unwrap_or(0);
         for c in (0..3).filter(|&c| c != r) {
             p[c] = match_corners(l[r], l[c]);
         }
     }
     (0..l[0].len())
-        .map(|k| blend3_with(shade.blend, [0, 1, 2].map(|c| &l[c][p[c][k] as usize]), w))
+        .map(|k| blend3_with(shade.views, [0, 1, 2].map(|c| &l[c][p[c][k] as usize]), w))
         .collect()
 }
 

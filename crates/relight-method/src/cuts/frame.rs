@@ -115,6 +115,7 @@ pub struct CutsFrame<'a> {
 struct LocalState {
     caster: Box<dyn RayCaster>,
     materials: Vec<Material>,
+    maps: SceneMaps,
     light: PointLight,
     lighting: Option<LocalLighting>,
 }
@@ -188,6 +189,7 @@ impl<'a> CutsFrame<'a> {
                 Some(LocalState {
                     caster,
                     materials: materials.clone(),
+                    maps: maps.clone(),
                     light,
                     lighting: None,
                 })
@@ -230,7 +232,8 @@ impl<'a> CutsFrame<'a> {
             baked.settings.function,
             state.caster.as_ref(),
         )
-        .map_err(|e| MethodError::Settings(e.to_string()))?;
+        .map_err(|e| MethodError::Settings(e.to_string()))?
+        .with_maps(state.maps.clone());
         let lighting = shader
             .prepare(light, light_sigma, light_cut)
             .map_err(MethodError::Settings)?;
@@ -304,7 +307,8 @@ impl Frame for CutsFrame<'_> {
                 self.baked.settings.function,
                 state.caster.as_ref(),
             )
-            .expect("checked by set_point_light");
+            .expect("checked by set_point_light")
+            .with_maps(state.maps.clone());
             let img = shader.render(
                 lighting,
                 camera,

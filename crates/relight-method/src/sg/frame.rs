@@ -6,11 +6,10 @@ use super::SgBaked;
 use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
 use crate::PrepareTimes;
 use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
-use relight_render::shade_sg::{SgLighting, SgRenderer};
+use relight_render::shade_sg::{LobeBlend, SgLighting, SgRenderer, ShadeOptions};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
 
-/// Largest base face size of the prefiltered chain.
 /// Settings of the `sg` frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
@@ -23,13 +22,97 @@ pub struct SgFrameSettings {
     /// up to 1024; levels halve down to 1 texel).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFrameSettings::default().prefilter_size))]
     pub prefilter_size: usize,
+    /// How a vertex's lobes are blended across its three nearest views (`linear`: the
+    /// thesis' parameters; `energy`: integrals, shape weighted by energy).
+    #[cfg_attr(feature = "cli", arg(long = "sg-view-blend", value_enum, default_value_t = SgFrameSettings::default().view_blend))]
+    pub view_blend: SgBlend,
+    /// How a pixel blends its triangle's three corners' lobes.
+    #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum, default_value_t = SgFrameSettings::default().corner_blend))]
+    pub corner_blend: SgBlend,
+    /// Which blends permute lobes to a reference's before blending (section 3.4's flips).
+    #[cfg_attr(feature = "cli", arg(long = "sg-match", value_enum, default_value_t = SgFrameSettings::default().matching))]
+    pub matching: SgMatch,
+}
+
+/// A lobe blend of the frame (`relight_render::shade_sg::LobeBlend`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SgBlend {
+    /// Axis, sharpness and amplitude linear (the thesis, section 2.3).
+    Linear,
+    /// Energies linear, axis and sharpness weighted by energy.
+    Energy,
+}
+
+/// Which blends match lobes before blending.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SgMatch {
+    /// Slot `k` with slot `k` everywhere (the thesis).
+    None,
+    /// Across views only.
+    Views,
+    /// Across a triangle's corners only.
+    Corners,
+    /// Both.
+    Both,
+}
+
+impl std::fmt::Display for SgBlend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SgBlend::Linear => "linear",
+            SgBlend::Energy => "energy",
+        })
+    }
+}
+
+impl std::fmt::Display for SgMatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SgMatch::None => "none",
+            SgMatch::Views => "views",
+            SgMatch::Corners => "corners",
+            SgMatch::Both => "both",
+        })
+    }
+}
+
+impl SgFrameSettings {
+    /// The renderer's interpolation options.
+    pub fn shade_options(&self) -> ShadeOptions {
+        let blend = |b| match b {
+            SgBlend::Linear => LobeBlend::Linear,
+            SgBlend::Energy => LobeBlend::Energy,
+        };
+        ShadeOptions {
+            views: blend(self.view_blend),
+            match_views: matches!(self.matching, SgMatch::Views | SgMatch::Both),
+            corners: blend(self.corner_blend),
+            match_corners: matches!(self.matching, SgMatch::Corners | SgMatch::Both),
+        }
+    }
 }
 
 impl Default for SgFrameSettings {
-    /// A 128-texel finest level.
+    /// A 128-texel finest level; the renderer's default interpolation
+    /// (`ShadeOptions::default`).
     fn default() -> Self {
+        let o = ShadeOptions::default();
+        let blend = |b| match b {
+            LobeBlend::Linear => SgBlend::Linear,
+            LobeBlend::Energy => SgBlend::Energy,
+        };
         SgFrameSettings {
             prefilter_size: 128,
+            view_blend: blend(o.views),
+            corner_blend: blend(o.corners),
+            matching: match (o.match_views, o.match_corners) {
+                (false, false) => SgMatch::None,
+                (true, false) => SgMatch::Views,
+                (false, true) => SgMatch::Corners,
+                (true, true) => SgMatch::Both,
+            },
         }
     }
 }
@@ -51,7 +134,8 @@ impl<'a> SgFrame<'a> {
         check_prefilter_size(s.prefilter_size, "sg")?;
         Ok(SgFrame {
             baked,
-            renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake),
+            renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake)
+                .with_options(s.shade_options()),
             prefilter_size: s.prefilter_size,
             lighting: None,
         })

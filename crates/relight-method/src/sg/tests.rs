@@ -286,3 +286,32 @@ fn a_small_bake_through_the_seam_renders_and_refuses_other_methods() {
         );
     }
 }
+
+#[test]
+fn frame_settings_map_onto_the_renderers_interpolation() {
+    use relight_render::shade_sg::{LobeBlend, ShadeOptions};
+    // The default settings are the renderer's default, so `relight render` and the library
+    // agree.
+    assert_eq!(
+        SgFrameSettings::default().shade_options(),
+        ShadeOptions::default()
+    );
+    let paper = SgFrameSettings {
+        view_blend: SgBlend::Linear,
+        corner_blend: SgBlend::Linear,
+        matching: SgMatch::None,
+        ..Default::default()
+    };
+    assert_eq!(paper.shade_options(), ShadeOptions::PAPER);
+    let o = SgFrameSettings {
+        view_blend: SgBlend::Energy,
+        corner_blend: SgBlend::Linear,
+        matching: SgMatch::Corners,
+        ..Default::default()
+    }
+    .shade_options();
+    assert_eq!(
+        (o.views, o.match_views, o.corners, o.match_corners),
+        (LobeBlend::Energy, false, LobeBlend::Linear, true)
+    );
+}

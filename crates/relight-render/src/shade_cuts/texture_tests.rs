@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// A fresh temporary folder.
-fn temp_dir() -> PathBuf {
+pub(crate) fn temp_dir() -> PathBuf {
     let d = std::env::temp_dir().join(format!("relight-cuts-textures-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -29,7 +29,7 @@ fn temp_dir() -> PathBuf {
 /// 64 x 32 texels (sRGB-encoded: the loader decodes it), and `ripples.png` / `flipped.png`,
 /// a normal map of six ripples around `u` (tilting the normal by up to 27 degrees along the
 /// tangent) and the same with its tangent component negated (the control).
-fn write_maps(dir: &Path) {
+pub(crate) fn write_maps(dir: &Path) {
     let (w, h) = (64usize, 32usize);
     let checker: Vec<[u8; 3]> = (0..w * h)
         .map(|i| {
@@ -56,7 +56,7 @@ fn write_maps(dir: &Path) {
 }
 
 /// The maps of `desc` read from `dir` for `material`.
-fn load(dir: &Path, desc: MapsDesc, material: &Material) -> Arc<MaterialMaps> {
+pub(crate) fn load(dir: &Path, desc: MapsDesc, material: &Material) -> Arc<MaterialMaps> {
     let origin = dir.join("material.json");
     Arc::new(MaterialMaps::load(&desc, material, &origin, &PathPolicy::default()).unwrap())
 }

@@ -67,6 +67,8 @@ fn light_at(p: Vec3) -> PointLight {
 struct Fixture {
     mesh: TriMesh,
     materials: Vec<Material>,
+    /// The path tracer's maps ([`reference`]).
+    maps: SceneMaps,
     bake: CutsBake,
     caster: Box<dyn RayCaster>,
 }
@@ -86,6 +88,7 @@ fn fixture(function: CutFunction) -> Fixture {
     Fixture {
         mesh,
         materials,
+        maps: SceneMaps::default(),
         bake,
         caster,
     }
@@ -93,7 +96,7 @@ fn fixture(function: CutFunction) -> Fixture {
 
 fn reference(f: &Fixture, light: PointLight, max_depth: i32, spp: u32) -> (Image, f64) {
     let scene = Scene {
-        maps: Default::default(),
+        maps: f.maps.clone(),
         mesh: f.mesh.clone(),
         materials: f.materials.clone(),
         env: Environment::new(EnvMap::constant(Vec3::ZERO)),
@@ -356,4 +359,67 @@ fn batched_render_equals_the_per_fragment_merge() {
             }
         }
     }
+}
+
+/// The room with a checker diffuse map on its white material (walls, floor, ceiling, sphere
+/// and box; planar texture coordinates from x and z): the direct light and the bounce (each
+/// surface sample re-emits with the albedo at its point) follow the map as the path tracer
+/// does, and the frame without the maps does not.
+#[test]
+fn diffuse_maps_light_and_bounce_as_the_path_tracer() {
+    use crate::shade_cuts::texture_tests::{load, temp_dir, write_maps};
+    use relight_scene::material::maps::MapsDesc;
+    let mut f = fixture(CutFunction::Visibility);
+    f.mesh.uvs = Some(
+        f.mesh
+            .positions
+            .iter()
+            .map(|p| glam::Vec2::new(0.5 + 0.5 * p.x, 0.5 + 0.5 * p.z))
+            .collect(),
+    );
+    let dir = temp_dir().join("local");
+    std::fs::create_dir_all(&dir).unwrap();
+    write_maps(&dir);
+    let desc = MapsDesc {
+        diffuse: Some("checker.png".into()),
+        ..Default::default()
+    };
+    let maps = SceneMaps::new(
+        &f.mesh,
+        vec![Some(load(&dir, desc, &f.materials[0])), None, None],
+    )
+    .unwrap();
+    let shader = |maps: SceneMaps| {
+        LocalShader::new(
+            &f.mesh,
+            f.materials.clone(),
+            &f.bake,
+            CutFunction::Visibility,
+            f.caster.as_ref(),
+        )
+        .unwrap()
+        .with_maps(maps)
+    };
+    let light = light_at(POSITIONS[0]);
+    let opts = RasterOptions { supersample: 4 };
+    let render = |s: &LocalShader<'_>| {
+        let l = s.prepare(light, 2.0, 256).unwrap();
+        s.render(&l, &camera(), &opts, Terms::ALL).image
+    };
+    let textured = render(&shader(maps.clone()));
+    let plain = render(&shader(SceneMaps::default()));
+    f.maps = maps;
+    let (pt, noise) = reference(&f, light, 3, 256);
+    // The untextured room's tolerance (`one_bounce_matches_the_path_tracer_and_the_controls_fail`).
+    let tol = (noise * noise + CUT_ALLOWANCE * CUT_ALLOWANCE).sqrt();
+    let e = metrics(&textured, &pt, None).rel_rmse;
+    let e_plain = metrics(&plain, &pt, None).rel_rmse;
+    eprintln!(
+        "textured room: {e:.4} (noise {noise:.4}, tolerance {tol:.4}); maps ignored {e_plain:.4}"
+    );
+    assert!(e < tol, "textured {e:.4} >= {tol:.4}");
+    assert!(
+        e_plain > 2.0 * tol,
+        "maps ignored {e_plain:.4} should fail {tol:.4}"
+    );
 }

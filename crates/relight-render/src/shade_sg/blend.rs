@@ -29,15 +29,15 @@
 use glam::Vec3;
 use relight_sphere::sg::SgLobe;
 
-/// How lobes are interpolated (module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+/// How lobes are interpolated (module docs; which blend the frame uses where is
+/// `ShadeOptions`'s, chosen by docs/RESULTS.md §8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LobeBlend {
-    /// Linear axis (renormalised), sharpness and amplitude: the paper's.
+    /// Linear axis (renormalised), sharpness and amplitude: the paper's; the frame's blend
+    /// across views.
     Linear,
-    /// Linear energy; axis and sharpness weighted by energy. The default since issue 10: with
-    /// two lobes the linear blend lost 17 % of the teapot-dawn conductor's light and tripled
-    /// its error (docs/RESULTS.md §8).
-    #[default]
+    /// Linear energy; axis and sharpness weighted by energy: the frame's blend across a
+    /// triangle's corners.
     Energy,
 }
 

@@ -12,7 +12,7 @@ use relight_scene::shapes;
 
 /// A sphere on a floor, both GGX conductors (alpha 0.2 and 0.15), under a sky with two small
 /// bright windows (a peaked probe like the real ones: the windows carry most of the light).
-fn scene() -> Scene {
+fn sphere_scene() -> Scene {
     let mut mesh = shapes::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 10, 20);
     mesh.append(&shapes::ground_plane(Vec3::ZERO, 3.0, 8), 1);
     let windows = [
@@ -57,13 +57,58 @@ fn scene() -> Scene {
     }
 }
 
+/// Fig. 3-5 in small: a Lambert box standing between a bright window low in the sky and a
+/// glossy GGX conductor floor (alpha 0.2, which the test's 16-texel cube faces resolve;
+/// triangles a sixth of the box, about as Fig. 3-5's floor is to its teapot), seen from the
+/// other side, so the window's reflection on the floor is cut by the box's shadow.
+fn shadowed_highlight_scene() -> Scene {
+    let mut mesh = shapes::aabb_box(Vec3::new(-0.3, 0.0, -0.3), Vec3::new(0.3, 0.5, 0.3), 4);
+    mesh.append(&shapes::ground_plane(Vec3::ZERO, 2.4, 24), 1);
+    let window = Vec3::new(0.0, 0.3, -1.0).normalize();
+    let map = EnvMap::latlong_from_fn(128, 64, |d| {
+        let sky = Vec3::new(0.3, 0.35, 0.45) * (0.4 + 0.6 * d.y.max(0.0))
+            + Vec3::new(0.15, 0.13, 0.1) * (-d.y).max(0.0);
+        sky + if d.dot(window) > 0.98 {
+            Vec3::new(30.0, 28.0, 24.0)
+        } else {
+            Vec3::ZERO
+        }
+    });
+    Scene {
+        maps: Default::default(),
+        mesh,
+        materials: vec![
+            Material::Lambert {
+                albedo: Vec3::splat(0.7),
+            },
+            Material::GgxConductor {
+                specular: Vec3::new(0.6, 0.6, 0.65),
+                alpha: 0.2,
+            },
+        ],
+        env: Environment::new(map),
+        camera: Camera {
+            origin: [0.2, 1.0, 2.6],
+            target: [0.0, 0.1, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_deg: 45.0,
+            width: 64,
+            height: 48,
+        },
+    }
+}
+
 /// Relative RMSE of the frame against the path tracer for 1, 2 and 3 direct lobes baked
-/// with `fit` and rendered with `shade`, and the reference's relative noise.
-fn errors_by_lobes(fit: bake_sg::SgFitSettings, shade: ShadeOptions) -> (Vec<f64>, f64) {
-    let scene = scene();
+/// with `fit`, each bake rendered with every one of `shades` (`errors[s][lobes - 1]`), and
+/// the reference's relative noise.
+fn errors_by_lobes(
+    scene: &Scene,
+    fit: bake_sg::SgFitSettings,
+    shades: &[ShadeOptions],
+) -> (Vec<Vec<f64>>, f64) {
     let caster = relight_scene::accel::build_default(&scene.mesh);
     let (reference, variance) = pathtrace::render_with_variance(
-        &scene,
+        scene,
         caster.as_ref(),
         &PtSettings {
             spp: 1024,
@@ -74,7 +119,7 @@ fn errors_by_lobes(fit: bake_sg::SgFitSettings, shade: ShadeOptions) -> (Vec<f64
         },
     );
     let lighting = SgLighting::new(&scene.env, 3, 128);
-    let mut errors = vec![];
+    let mut errors = vec![vec![]; shades.len()];
     let mut mask = vec![];
     for lobes in 1..=3 {
         let settings = SgBakeSettings {
@@ -95,17 +140,19 @@ fn errors_by_lobes(fit: bake_sg::SgFitSettings, shade: ShadeOptions) -> (Vec<f64
             &settings,
         )
         .unwrap();
-        let r = SgRenderer::new(&scene.mesh, &bake).with_options(shade);
-        let (img, _) = r.render(
-            &lighting,
-            &scene.camera,
-            None,
-            &RasterOptions { supersample: 4 },
-        );
-        if mask.is_empty() {
-            mask = img.full_coverage_mask();
+        for (e, &shade) in errors.iter_mut().zip(shades) {
+            let r = SgRenderer::new(&scene.mesh, &bake).with_options(shade);
+            let (img, _) = r.render(
+                &lighting,
+                &scene.camera,
+                None,
+                &RasterOptions { supersample: 4 },
+            );
+            if mask.is_empty() {
+                mask = img.full_coverage_mask();
+            }
+            e.push(compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse);
         }
-        errors.push(compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse);
     }
     // The reference's own relative noise over the same pixels (standard error of each pixel).
     let (mut var, mut sq) = (0f64, 0f64);
@@ -118,13 +165,26 @@ fn errors_by_lobes(fit: bake_sg::SgFitSettings, shade: ShadeOptions) -> (Vec<f64
     (errors, (var / sq).sqrt())
 }
 
-/// The default bake and frame (energy blend, lobe matching): each added lobe is no worse
-/// than one lobe fewer. Measured 2026-12-01: 0.307, 0.215, 0.189 for 1, 2, 3 lobes, reference
-/// noise 0.037. The bake options tried in issue 10 fail it (nested lobes with the energy term
+/// Whether each added lobe is no worse than one lobe fewer: both errors are measured
+/// against the same reference, so its noise moves them together; a difference within one
+/// reference noise is not a measurable loss.
+fn monotone(errors: &[f64], noise: f64) -> bool {
+    errors.windows(2).all(|w| w[1] <= w[0] + noise)
+}
+
+/// The default bake and frame (lobes matched, views blended linearly, corners by energy):
+/// each added lobe is no worse than one lobe fewer. Measured 2026-12-02: 0.305, 0.214, 0.185
+/// for 1, 2, 3 lobes, reference noise 0.037 (the energy frame of 2026-12-01, `ShadeOptions::ENERGY`:
+/// 0.307, 0.215, 0.189). The bake options tried in issue 10 fail it (nested lobes with the energy term
 /// gave 0.292, 0.338, 0.273); the paper's linear blend gave 0.300, 0.299, 0.301.
 #[test]
 fn more_direct_lobes_are_never_worse() {
-    let (errors, noise) = errors_by_lobes(Default::default(), ShadeOptions::default());
+    let (errors, noise) = errors_by_lobes(
+        &sphere_scene(),
+        Default::default(),
+        &[ShadeOptions::default()],
+    );
+    let errors = &errors[0];
     eprintln!("relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
     // Lobes must also pay for themselves: the measured gain from one to three lobes (0.12)
     // is over three times the reference noise, so a frame that merely ties (the paper's
@@ -135,18 +195,7 @@ fn more_direct_lobes_are_never_worse() {
         errors[2],
         errors[0]
     );
-    for k in 0..2 {
-        // Both errors are measured against the same reference, so its noise moves them
-        // together; a difference within one reference noise is not a measurable loss.
-        assert!(
-            errors[k + 1] <= errors[k] + noise,
-            "{} lobes: {} > {} lobes: {} + noise {noise}",
-            k + 2,
-            errors[k + 1],
-            k + 1,
-            errors[k]
-        );
-    }
+    assert!(monotone(errors, noise), "{errors:?} (noise {noise})");
 }
 
 /// The same check with the lobes moved to their moments after the fit
@@ -157,17 +206,33 @@ fn more_moment_shaped_lobes_are_never_worse() {
         lobe_shape: bake_sg::LobeShape::Moments,
         ..Default::default()
     };
-    let (errors, noise) = errors_by_lobes(fit, ShadeOptions::default());
+    let (errors, noise) = errors_by_lobes(&sphere_scene(), fit, &[ShadeOptions::default()]);
+    let errors = &errors[0];
     eprintln!("moments: relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
-    for k in 0..2 {
-        // As above: a difference within one reference noise is not a measurable loss.
-        assert!(
-            errors[k + 1] <= errors[k] + noise,
-            "{} lobes: {} > {} lobes: {} + noise {noise}",
-            k + 2,
-            errors[k + 1],
-            k + 1,
-            errors[k]
-        );
-    }
+    assert!(monotone(errors, noise), "{errors:?} (noise {noise})");
+}
+
+/// Fig. 3-5 in small ([`shadowed_highlight_scene`]): with the default frame each added lobe
+/// is no worse than one fewer. Measured 2026-12-02: 0.366, 0.332, 0.230 for 1, 2, 3 lobes,
+/// reference noise 0.036. This small scene does **not** reproduce Fig. 3-5's failure of the
+/// energy frame (`ShadeOptions::ENERGY`: 0.351, 0.322, 0.238 here, monotone; 28.5, 61.9,
+/// 45.9 % on Fig. 3-5, whose alpha 0.1 floor needs the bake's full 32-texel faces, too slow
+/// for a test): it checks monotonicity where a shadow cuts a highlight; the evaluation
+/// (`relight eval --method sg`) checks the real scenes.
+#[test]
+fn shadowed_highlight_more_lobes_are_never_worse() {
+    let (errors, noise) = errors_by_lobes(
+        &shadowed_highlight_scene(),
+        Default::default(),
+        &[ShadeOptions::default()],
+    );
+    eprintln!(
+        "relative RMSE by lobe count {:?}, reference noise {noise:.4}",
+        errors[0]
+    );
+    assert!(
+        monotone(&errors[0], noise),
+        "default frame: {:?} (noise {noise})",
+        errors[0]
+    );
 }
