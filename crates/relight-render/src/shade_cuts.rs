@@ -228,10 +228,9 @@ impl<'a> CutsShader<'a> {
     }
 
     /// Merge every vertex's cut with `light` now (the traversal of sec. 3.2 over two cuts;
-    /// what [`CutsShader::render`] does on its
-    /// first frame under a new light cut: once per environment and rotation, independent of
-    /// the camera and the materials) and keep the lists for the next frames; `None` (nothing
-    /// built) when no material is Lambert.
+    /// what [`CutsShader::render`] does on its first frame under a new light cut: once per
+    /// environment and rotation, independent of the camera and the materials) and keep the
+    /// lists for the next frames; `None` (nothing built) when no material is Lambert.
     pub fn prepare(&self, light: &LightCut) -> Option<CornerStats> {
         self.has_lambert.then(|| {
             let lit = self.prepared(light);
@@ -308,7 +307,7 @@ impl<'a> CutsShader<'a> {
     }
 
     /// Eq. 5 summed by corner at each fragment of triangle `tri`, whose material is Lambert,
-    /// from the corner lists of `lit` (module docs of `shade_cuts::corners`):
+    /// from the corner lists `lists` of `light` (module docs of `shade_cuts::corners`):
     /// `albedo / pi sum_j b_j sum_k P_jk max(0, n . w_jk)` (binary visibility), or
     /// `albedo / pi sum_j b_j sum_k P_jk` with the cosine in the cuts. A fragment whose maps
     /// made its material another model is shaded by the per-fragment merge.
