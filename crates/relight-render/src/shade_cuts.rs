@@ -32,6 +32,7 @@
 mod corners;
 mod triangle;
 
+use crate::mapped::MappedMaterials;
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use corners::CornerLists;
 use glam::Vec3;
@@ -40,7 +41,7 @@ use relight_bake::cuts::merge::shade;
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::CutsBake;
 use relight_scene::camera::Camera;
-use relight_scene::material::maps::{shading_at, SceneMaps};
+use relight_scene::material::maps::SceneMaps;
 use relight_scene::material::{Material, MaterialEval};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Environment;
@@ -55,12 +56,8 @@ const HORIZON: f32 = 1e-3;
 /// The cuts renderer over one whole-mesh bake.
 pub struct CutsShader<'a> {
     mesh: &'a TriMesh,
-    /// The constant materials (what [`shading_at`] reads)...
-    constants: Vec<Material>,
-    /// ... and the same prepared for evaluation.
-    materials: Vec<MaterialEval>,
-    /// Their texture and normal maps ([`CutsShader::with_maps`]).
-    maps: SceneMaps,
+    /// The materials and their texture and normal maps ([`CutsShader::with_maps`]).
+    materials: MappedMaterials,
     bake: &'a CutsBake,
     function: CutFunction,
     /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
@@ -94,9 +91,7 @@ impl<'a> CutsShader<'a> {
             has_lambert: materials
                 .iter()
                 .any(|m| matches!(m, Material::Lambert { .. })),
-            materials: materials.iter().copied().map(MaterialEval::new).collect(),
-            constants: materials,
-            maps: SceneMaps::default(),
+            materials: MappedMaterials::new(materials),
             bake,
             function,
             spread: false,
@@ -114,14 +109,16 @@ impl<'a> CutsShader<'a> {
     }
 
     /// With the materials' texture and normal maps (built over this shader's mesh): every
-    /// fragment of a mapped material is shaded with [`shading_at`]'s material and normal,
+    /// fragment of a mapped material is shaded with [`relight_scene::material::maps::shading_at`]'s material and normal,
     /// the path tracer's lookup.
-    pub fn with_maps(mut self, maps: SceneMaps) -> Self {
-        self.maps = maps;
-        self
+    pub fn with_maps(self, maps: SceneMaps) -> Self {
+        CutsShader {
+            materials: self.materials.with_maps(maps),
+            ..self
+        }
     }
 
-    /// The prepared material and shading normal of fragment `f` ([`shading_at`] when its
+    /// The prepared material and shading normal of fragment `f` ([`MappedMaterials::at`] when its
     /// material has maps; `owned` holds the mapped material).
     #[inline]
     fn material_at<'s>(
@@ -129,19 +126,7 @@ impl<'a> CutsShader<'a> {
         f: &Fragment,
         owned: &'s mut Option<MaterialEval>,
     ) -> (&'s MaterialEval, Vec3) {
-        let id = self.mesh.material_ids[f.tri as usize];
-        if self.maps.of(id).is_none() {
-            return (&self.materials[id as usize], f.shading_normal);
-        }
-        let (m, frame) = shading_at(
-            self.mesh,
-            &self.constants,
-            &self.maps,
-            f.tri,
-            f.bary,
-            f.shading_normal,
-        );
-        (owned.insert(MaterialEval::new(m)), frame.n)
+        self.materials.at(self.mesh, f, owned)
     }
 
     /// Whether `material` is shaded with the cluster spread.
@@ -214,9 +199,12 @@ impl<'a> CutsShader<'a> {
             if stage == CutsStage::GBuffer {
                 return;
             }
-            let id = self.mesh.material_ids[tri as usize] as usize;
+            let constant = self
+                .materials
+                .of_triangle(self.mesh, tri as usize)
+                .material();
             match &lit {
-                Some(lit) if matches!(self.constants[id], Material::Lambert { .. }) => {
+                Some(lit) if matches!(constant, Material::Lambert { .. }) => {
                     self.shade_corners(light, &lit.lists, tri, fs, eye, out)
                 }
                 _ => TRIANGLE_CUT.with_borrow_mut(|t| {
