@@ -122,7 +122,9 @@ pub(super) fn section(
                 ],
                 &bake,
                 function,
-            );
+            )
+            // The frame's default (glossy BRDFs averaged over each cluster's spread).
+            .with_cluster_spread(relight_method::cuts::CutsFrameSettings::default().cluster_spread);
             let budgets: &[usize] = if quick { &[256] } else { &LIGHT_CUT_BUDGETS };
             for &budget in budgets {
                 let light = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
