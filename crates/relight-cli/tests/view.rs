@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 mod common;
 use common::{assert_clean_failure, relight, stderr, stdout, tmpdir};
 
@@ -38,51 +38,50 @@ impl Drop for Xvfb {
 }
 
 /// Start `Xvfb` on a free display, or `None` after a printed skip (a failure under
-/// `RELIGHT_REQUIRE_REFERENCE=1`).
+/// `RELIGHT_REQUIRE_REFERENCE=1`). Xvfb picks the display itself (`-displayfd`: it takes the
+/// display's lock and writes its number once it accepts connections), so tests running in
+/// parallel never share a server: choosing the number here raced, two tests could both see a
+/// display free, and one test's server was killed under the other's window.
 fn xvfb() -> Option<Xvfb> {
-    let base = 60 + (std::process::id() % 300) as usize;
-    for n in base..base + 40 {
-        if Path::new(&format!("/tmp/.X{n}-lock")).exists() {
-            continue;
+    let child = Command::new("Xvfb")
+        .args([
+            "-displayfd",
+            "1",
+            "-screen",
+            "0",
+            "1280x1024x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn();
+    let mut child = match child {
+        Ok(c) => c,
+        Err(e) => {
+            relight_testdata::skip(&format!("cannot start Xvfb ({e}): apt-get install xvfb"));
+            return None;
         }
-        let child = Command::new("Xvfb")
-            .args([
-                &format!(":{n}"),
-                "-screen",
-                "0",
-                "1280x1024x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn();
-        let mut child = match child {
-            Ok(c) => c,
-            Err(e) => {
-                relight_testdata::skip(&format!("cannot start Xvfb ({e}): apt-get install xvfb"));
-                return None;
-            }
-        };
-        // Ready when its socket appears; gone when the display was taken after all.
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(10) {
-            if let Ok(Some(_)) = child.try_wait() {
-                break;
-            }
-            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                return Some(Xvfb {
-                    child,
-                    display: format!(":{n}"),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(50));
+    };
+    let out = child.stdout.take().expect("piped stdout");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(out), &mut line);
+        let _ = tx.send(line);
+    });
+    match rx.recv_timeout(Duration::from_secs(20)) {
+        Ok(line) if line.trim().parse::<u32>().is_ok() => Some(Xvfb {
+            child,
+            display: format!(":{}", line.trim()),
+        }),
+        other => {
+            let _ = child.kill();
+            let _ = child.wait();
+            relight_testdata::skip(&format!("Xvfb did not report a display: {other:?}"));
+            None
         }
-        let _ = child.kill();
-        let _ = child.wait();
     }
-    relight_testdata::skip("Xvfb did not start on any of 40 displays");
-    None
 }
 
 /// `relight view` on `display` with lavapipe (unless `WGPU_ADAPTER_NAME` is set) and `args`.
