@@ -204,6 +204,25 @@ fn lab_to_linear_srgb(l: f64, a: f64, b: f64) -> [f64; 3] {
     ]
 }
 
+/// Test support: assert `fast` equals `slow` pixel by pixel up to f32 rounding, `1e-5` of
+/// `slow`'s peak (the same terms summed in another order), and that `slow` is not black;
+/// `what` names the case in the failure.
+#[cfg(test)]
+pub(crate) fn assert_same_up_to_rounding(fast: &Image, slow: &Image, what: &str) {
+    let peak = slow
+        .pixels
+        .iter()
+        .map(|p| p.max_element())
+        .fold(0.0, f32::max);
+    assert!(peak > 0.0, "{what}: a black image");
+    for (p, q) in fast.pixels.iter().zip(&slow.pixels) {
+        assert!(
+            (*p - *q).abs().max_element() <= 1e-5 * peak,
+            "{what}: {p} vs {q}"
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

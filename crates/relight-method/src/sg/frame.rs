@@ -96,23 +96,14 @@ impl SgFrameSettings {
 
 impl Default for SgFrameSettings {
     /// A 128-texel finest level; the renderer's default interpolation
-    /// (`ShadeOptions::default`).
+    /// (`ShadeOptions::default`: views linear, corners by energy, lobes matched in both;
+    /// the test `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
     fn default() -> Self {
-        let o = ShadeOptions::default();
-        let blend = |b| match b {
-            LobeBlend::Linear => SgBlend::Linear,
-            LobeBlend::Energy => SgBlend::Energy,
-        };
         SgFrameSettings {
             prefilter_size: 128,
-            view_blend: blend(o.views),
-            corner_blend: blend(o.corners),
-            matching: match (o.match_views, o.match_corners) {
-                (false, false) => SgMatch::None,
-                (true, false) => SgMatch::Views,
-                (false, true) => SgMatch::Corners,
-                (true, true) => SgMatch::Both,
-            },
+            view_blend: SgBlend::Linear,
+            corner_blend: SgBlend::Energy,
+            matching: SgMatch::Both,
         }
     }
 }

@@ -343,20 +343,12 @@ fn batched_render_equals_the_per_fragment_merge() {
             let opts = RasterOptions { supersample: 2 };
             let fast = shader.render(&l, &cam, &opts, Terms::ALL);
             let slow = shader.render_per_fragment(&l, &cam, &opts, Terms::ALL);
-            let peak = slow
-                .image
-                .pixels
-                .iter()
-                .map(|p| p.max_element())
-                .fold(0.0, f32::max);
-            assert!(peak > 0.0);
-            for (p, q) in fast.image.pixels.iter().zip(&slow.image.pixels) {
-                // The same terms summed in another order: f32 rounding only.
-                assert!(
-                    (*p - *q).abs().max_element() <= 1e-5 * peak,
-                    "{function:?}: {p} vs {q}"
-                );
-            }
+            // The same terms summed in another order.
+            crate::compare::assert_same_up_to_rounding(
+                &fast.image,
+                &slow.image,
+                &format!("{function:?}"),
+            );
         }
     }
 }
