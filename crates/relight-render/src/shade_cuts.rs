@@ -30,6 +30,7 @@
 //! [`CutFunction::Visibility`] it follows the mapped normal as the path tracer's does.
 
 mod corners;
+mod lanes;
 mod triangle;
 
 use crate::mapped::MappedMaterials;
@@ -208,7 +209,7 @@ impl<'a> CutsShader<'a> {
                     self.shade_corners(light, &lit.lists, tri, fs, eye, out)
                 }
                 _ => TRIANGLE_CUT.with_borrow_mut(|t| {
-                    t.build(self, light, tri);
+                    t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
                     self.shade_triangle(light, t, tri, fs, eye, out);
                 }),
             }
@@ -269,8 +270,12 @@ impl<'a> CutsShader<'a> {
     ) -> Rendered {
         let eye = Vec3::from_array(camera.origin);
         raster::render_deferred_batched(self.mesh, camera, background, opts, |tri, fs, out| {
+            let constant = self
+                .materials
+                .of_triangle(self.mesh, tri as usize)
+                .material();
             TRIANGLE_CUT.with_borrow_mut(|t| {
-                t.build(self, light, tri);
+                t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
                 self.shade_triangle(light, t, tri, fs, eye, out);
             })
         })
@@ -350,7 +355,6 @@ impl<'a> CutsShader<'a> {
             debug_assert_eq!(f.tri, tri);
             let mut owned = None;
             let (material, n) = self.material_at(f, &mut owned);
-            let spread = self.spreads(material);
             let view = (eye - f.position).normalize_or_zero();
             if view.dot(n) <= 0.0 {
                 *o = Vec3::ZERO; // one-sided materials, as the path tracer's
@@ -358,18 +362,20 @@ impl<'a> CutsShader<'a> {
             }
             let b = f.bary;
             *o = match (*material.material(), self.function) {
-                // eval / cos = albedo / pi for every cluster: the sum factors per corner.
+                // eval / cos = albedo / pi for every cluster: the sum factors per corner
+                // (the sums are those of whole clusters, spread or not).
                 (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
                     albedo * FRAC_1_PI * (t.sums[0] * b[0] + t.sums[1] * b[1] + t.sums[2] * b[2])
                 }
+                // A fragment whose maps changed whether it spreads (rare): the reference.
+                _ if self.spreads(material) != t.spread => self.shade_fragment(light, f, eye),
                 // eval = albedo / pi max(0, n . w): no frame needed.
                 (Material::Lambert { albedo }, CutFunction::Visibility) => {
                     albedo * FRAC_1_PI * t.lambert_sum(b, n)
                 }
-                // The GGX conductor in world space over lanes (the same definition).
-                (Material::GgxConductor { specular, alpha }, CutFunction::Visibility)
-                    if !spread =>
-                {
+                // The GGX conductor in world space over lanes (the same definition; with
+                // the spread, each cluster's five-point rule in the lanes).
+                (Material::GgxConductor { specular, alpha }, CutFunction::Visibility) => {
                     specular * t.ggx_sum(b, n, view, alpha)
                 }
                 (m, _) => {
@@ -377,11 +383,11 @@ impl<'a> CutsShader<'a> {
                     let wi = frame.to_local(view);
                     let mut sum = Vec3::ZERO;
                     for k in 0..t.len() {
-                        let (power, v, dir) = t.cluster(k, b);
+                        let (power, v, dir, node) = t.cluster(k, b);
                         if v > 0.0 {
                             let f = |w: Vec3| self.brdf(material, wi, frame.to_local(w));
-                            let f = if spread {
-                                light.spread_average(t.node[k], f)
+                            let f = if t.spread {
+                                light.spread_average(node, f)
                             } else {
                                 f(dir)
                             };

@@ -3,6 +3,7 @@
 //! cuts with the light cut done once per triangle and band of rows and summed per fragment.
 
 use super::corners::LANES;
+use super::lanes;
 use super::CutsShader;
 use glam::Vec3;
 use relight_bake::cuts::cut::dequantise;
@@ -20,7 +21,10 @@ thread_local! {
 /// traversal of sec. 3.2), with what the per-fragment sum of Eq. 5 needs of each cluster
 /// `k`: `|C'_k| <L O>_k`, the three corners' visibility means and the cluster's direction,
 /// as structure-of-arrays padded with zero clusters to a multiple of [`LANES`]. Clusters no
-/// corner sees, or that hold no light, are dropped (they add nothing).
+/// corner sees, or that hold no light, are dropped (they add nothing). Built for the cluster
+/// spread ([`TriangleCut::spread`]), each cluster also keeps the `cos theta_p` of its
+/// five-point rule ([`LightCut::spread_average`]), 1 for a cluster shaded at its direction
+/// alone, so the GGX lanes (`shade_cuts::lanes`) build the rule's directions themselves.
 #[derive(Default)]
 pub(super) struct TriangleCut {
     /// `|C'_k| <L O>_k`, per colour channel.
@@ -30,12 +34,17 @@ pub(super) struct TriangleCut {
     /// The cluster's mean direction ([`relight_bake::cuts::tree::LightTree::direction`]),
     /// per axis.
     dir: [Vec<f32>; 3],
+    /// `cos theta_p` of the cluster's five-point rule, exactly 1 for one evaluation (always
+    /// without the spread).
+    ring_cos: Vec<f32>,
     /// The cluster's tree node (post-order index; [`LightCut::spread_average`]).
-    pub(super) node: Vec<u32>,
+    node: Vec<u32>,
     /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
     pub(super) sums: [Vec3; 3],
     /// Clusters of this triangle, padding included (the arrays may be longer).
     len: usize,
+    /// Whether built for the cluster spread (module docs).
+    pub(super) spread: bool,
 }
 
 impl TriangleCut {
@@ -46,9 +55,16 @@ impl TriangleCut {
 
     /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
     /// grow, and are written by index; a merged cut is at most as long as its four cuts
-    /// together).
-    pub(super) fn build(&mut self, shader: &CutsShader<'_>, light: &LightCut, tri: u32) {
+    /// together), for the cluster spread if `spread`.
+    pub(super) fn build(
+        &mut self,
+        shader: &CutsShader<'_>,
+        light: &LightCut,
+        tri: u32,
+        spread: bool,
+    ) {
         self.sums = [Vec3::ZERO; 3];
+        self.spread = spread;
         let [a, b, c] = shader.mesh.indices[tri as usize];
         let cuts = [
             shader.bake.cuts.cut(a as usize),
@@ -61,6 +77,8 @@ impl TriangleCut {
             for a in [&mut self.power, &mut self.vis, &mut self.dir] {
                 a.iter_mut().for_each(|x| x.resize(bound, 0.0));
             }
+            self.ring_cos.resize(bound, 1.0);
+            self.node.resize(bound, 0);
         }
         let keys = [
             CutKeys::from(light),
@@ -81,10 +99,11 @@ impl TriangleCut {
                 return;
             }
             let dir = light.direction(node.index);
-            if self.node.len() < bound {
-                self.node.resize(bound, 0);
-            }
             self.node[n] = node.index;
+            self.ring_cos[n] = match spread.then(|| light.spread_directions(node.index)) {
+                Some(Some(_)) => light.spread_cos[node.index as usize],
+                _ => 1.0,
+            };
             for j in 0..3 {
                 let v = dequantise(q[j]);
                 sums[j] += power * v;
@@ -100,14 +119,15 @@ impl TriangleCut {
         for a in [&mut self.power, &mut self.vis, &mut self.dir] {
             a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
         }
+        self.ring_cos[n..self.len].fill(1.0);
     }
 
-    /// Cluster `k`'s power, visibility interpolated with `b`, and direction.
+    /// Cluster `k`'s power, visibility interpolated with `b`, direction and tree node.
     #[inline]
-    pub(super) fn cluster(&self, k: usize, b: [f32; 3]) -> (Vec3, f32, Vec3) {
+    pub(super) fn cluster(&self, k: usize, b: [f32; 3]) -> (Vec3, f32, Vec3, u32) {
         let at = |a: &[Vec<f32>; 3]| Vec3::new(a[0][k], a[1][k], a[2][k]);
         let v = b[0] * self.vis[0][k] + b[1] * self.vis[1][k] + b[2] * self.vis[2][k];
-        (at(&self.power), v, at(&self.dir))
+        (at(&self.power), v, at(&self.dir), self.node[k])
     }
 
     /// `sum_k power_k (b . vis_k) max(0, n . dir_k)`: Eq. 5 for a Lambert BRDF without its
@@ -142,32 +162,25 @@ impl TriangleCut {
             a * a
         };
         let ci = n.dot(v);
-        let g1 = |c: f32| {
-            let tan2 = a2 * (1.0 - c * c) / (c * c);
-            2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt())
-        };
+        let tan2 = a2 * (1.0 - ci * ci) / (ci * ci);
+        let g1 = 2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt());
         // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
-        let k = g1(ci) / (4.0 * ci) / (PI * a2);
-        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
-            a.each_ref().map(|x| x.as_chunks::<LANES>().0)
+        let k = g1 / (4.0 * ci) / (PI * a2);
+        lanes::ggx(&self.groups(), &lanes::GgxFragment { b, n, v, a2 }) * k
+    }
+
+    /// The clusters as [`LANES`]-wide groups (padding included).
+    fn groups(&self) -> lanes::Groups<'_> {
+        fn chunks(a: &[Vec<f32>; 3], len: usize) -> [&[[f32; LANES]]; 3] {
+            [0, 1, 2].map(|c| a[c][..len].as_chunks::<LANES>().0)
         }
-        let (p, vis, d) = (chunks(&self.power), chunks(&self.vis), chunks(&self.dir));
-        let mut acc = [[0.0f32; LANES]; 3];
-        for i in 0..self.len / LANES {
-            for l in 0..LANES {
-                let w = Vec3::new(d[0][i][l], d[1][i][l], d[2][i][l]);
-                let co = n.dot(w);
-                let h = v + w;
-                let hn = n.dot(h) / h.length();
-                let s = (1.0 - hn * hn) / a2 + hn * hn;
-                let x = (b[0] * vis[0][i][l] + b[1] * vis[1][i][l] + b[2] * vis[2][i][l]) * g1(co)
-                    / (s * s);
-                let x = if co > 0.0 && hn > 0.0 { x } else { 0.0 };
-                for ch in 0..3 {
-                    acc[ch][l] += p[ch][i][l] * x;
-                }
-            }
+        lanes::Groups {
+            power: chunks(&self.power, self.len),
+            vis: chunks(&self.vis, self.len),
+            dir: chunks(&self.dir, self.len),
+            ring_cos: self
+                .spread
+                .then(|| self.ring_cos[..self.len].as_chunks::<LANES>().0),
         }
-        Vec3::from_array(acc.map(|a| a.iter().sum())) * k
     }
 }

@@ -1,0 +1,219 @@
+//! The per-fragment sums of `shade_cuts::triangle` over [`LANES`]-wide groups of merged
+//! clusters, written so the compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]`
+//! groups, no branch (masks become selects), and one body compiled twice, for the portable
+//! target and with AVX2 + FMA enabled (chosen at run time with `is_x86_feature_detected!`,
+//! like `shade_sh::avx2`). Rust never fuses a multiply and an add on its own, so the two
+//! builds give the same bits.
+//!
+//! Layout: structure-of-arrays, each array a whole number of groups (zero clusters pad the
+//! last one; they add `0`).
+
+use super::corners::LANES;
+use glam::Vec3;
+
+/// A fragment's view of one triangle's merged clusters (`shade_cuts::triangle::TriangleCut`).
+pub(super) struct Groups<'a> {
+    /// `|C'_k| <L O>_k`, per colour channel.
+    pub power: [&'a [[f32; LANES]]; 3],
+    /// `<v_j>_k` of the corners `j`.
+    pub vis: [&'a [[f32; LANES]]; 3],
+    /// The cluster's direction `mu`, per axis.
+    pub dir: [&'a [[f32; LANES]]; 3],
+    /// With the cluster spread, `cos theta_p` of each cluster's five-point rule
+    /// ([`relight_bake::cuts::light_cut::LightCut::spread_average`]), exactly 1 for a cluster
+    /// evaluated at `mu` alone.
+    pub ring_cos: Option<&'a [[f32; LANES]]>,
+}
+
+/// The fragment-constant part of the GGX conductor's sum ([`ggx`]).
+#[derive(Clone, Copy)]
+pub(super) struct GgxFragment {
+    /// Barycentric weights of the corners.
+    pub b: [f32; 3],
+    /// Unit shading normal.
+    pub n: Vec3,
+    /// Unit direction towards the eye, `n . v > 0`.
+    pub v: Vec3,
+    /// `alpha^2`, at least `MIN_ALPHA^2`.
+    pub a2: f32,
+}
+
+/// `sum_k power_k (b . vis_k) F_k` for the GGX conductor of `Material::eval` without its
+/// fragment-constant factors (the caller's `TriangleCut::ggx_sum`), where `F_k` is
+/// [`ggx_term`] at the cluster's direction `mu_k`, or with the spread the five-point rule's
+/// mean of it over `mu_k` and `mu_k cos theta_p +- sin theta_p s_k`, `+- sin theta_p t_k`
+/// (`s_k, t_k` the `relight_sphere::warp::Frame` of `mu_k`, branch-free, so built in the
+/// lanes): `LightCut::spread_average`'s directions.
+pub(super) fn ggx(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has AVX2 and FMA (just checked).
+        return unsafe { ggx_avx2(g, f) };
+    }
+    ggx_body(g, f)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn ggx_avx2(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
+    ggx_body(g, f)
+}
+
+#[inline(always)]
+fn ggx_body(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
+    match g.ring_cos {
+        None => ggx_groups::<false>(g, &[], f),
+        Some(c) => ggx_groups::<true>(g, c, f),
+    }
+}
+
+/// `G1(w) / s^2` of direction `w = (wx, wy, wz)` (unit), `0` unless `n . w > 0` and
+/// `n . h > 0`: with `h = v + w`, `c^2 = (n . h)^2 / |h|^2`, `s = (1 - c^2) / a^2 + c^2`
+/// (`D = 1 / (pi a^2 s^2)`) and `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`,
+/// `c_w = n . w` (height-separable Smith, `relight_scene::material::microfacet`).
+#[inline(always)]
+fn ggx_term(f: &GgxFragment, wx: f32, wy: f32, wz: f32) -> f32 {
+    let (n, v, a2) = (f.n, f.v, f.a2);
+    let co = n.x * wx + n.y * wy + n.z * wz;
+    let (hx, hy, hz) = (v.x + wx, v.y + wy, v.z + wz);
+    let hn = n.x * hx + n.y * hy + n.z * hz;
+    let c2 = hn * hn / (hx * hx + hy * hy + hz * hz);
+    let s = (1.0 - c2) / a2 + c2;
+    let co2 = co * co;
+    let tan2 = (a2 * (1.0 - co2) / co2).max(0.0);
+    let g1 = 2.0 / (1.0 + (1.0 + tan2).sqrt());
+    let y = g1 / (s * s);
+    if co > 0.0 && hn > 0.0 {
+        y
+    } else {
+        0.0
+    }
+}
+
+#[inline(always)]
+fn ggx_groups<const SPREAD: bool>(
+    g: &Groups<'_>,
+    ring_cos: &[[f32; LANES]],
+    f: &GgxFragment,
+) -> Vec3 {
+    let b = f.b;
+    let groups = g.dir[0].len();
+    let mut acc = [[0.0f32; LANES]; 3];
+    for i in 0..groups {
+        let (dx, dy, dz) = (&g.dir[0][i], &g.dir[1][i], &g.dir[2][i]);
+        let (v0, v1, v2) = (&g.vis[0][i], &g.vis[1][i], &g.vis[2][i]);
+        let rc = if SPREAD { &ring_cos[i] } else { &[1.0; LANES] };
+        let mut x = [0.0f32; LANES];
+        for l in 0..LANES {
+            let (mx, my, mz) = (dx[l], dy[l], dz[l]);
+            let mut y = ggx_term(f, mx, my, mz);
+            if SPREAD {
+                // relight_sphere::warp::Frame::from_normal(mu), then the four directions.
+                let c = rc[l];
+                let sn = (1.0 - c * c).max(0.0).sqrt();
+                let sign = 1.0f32.copysign(mz);
+                let a = -1.0 / (sign + mz);
+                let bb = mx * my * a;
+                let (sx, sy, sz) = (1.0 + sign * mx * mx * a, sign * bb, -sign * mx);
+                let (tx, ty, tz) = (bb, sign + my * my * a, -my);
+                let (cx, cy, cz) = (mx * c, my * c, mz * c);
+                let (px, py, pz) = (sx * sn, sy * sn, sz * sn);
+                let (qx, qy, qz) = (tx * sn, ty * sn, tz * sn);
+                let ring = ggx_term(f, cx + px, cy + py, cz + pz)
+                    + ggx_term(f, cx - px, cy - py, cz - pz)
+                    + ggx_term(f, cx + qx, cy + qy, cz + qz)
+                    + ggx_term(f, cx - qx, cy - qy, cz - qz);
+                // One evaluation where the rule is off (`c == 1`: the ring is `mu` itself).
+                y = if c < 1.0 { (y + ring) * 0.2 } else { y };
+            }
+            x[l] = (b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l]) * y;
+        }
+        for ch in 0..3 {
+            let p = &g.power[ch][i];
+            for l in 0..LANES {
+                acc[ch][l] += p[l] * x[l];
+            }
+        }
+    }
+    Vec3::from_array(acc.map(|a| a.iter().sum()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Three groups of clusters with directions all over the sphere (some below the
+    /// horizon), visibility in `[0, 1]` and rule angles from none to wide.
+    fn data() -> (
+        [Vec<[f32; LANES]>; 3],
+        [Vec<[f32; LANES]>; 3],
+        [Vec<[f32; LANES]>; 3],
+        Vec<[f32; LANES]>,
+    ) {
+        let mut rng = 0x2545_f491_u32;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 17;
+            rng ^= rng << 5;
+            rng as f32 / u32::MAX as f32
+        };
+        let groups = 3;
+        let mut fill = |f: &mut dyn FnMut(f32) -> f32| {
+            (0..groups)
+                .map(|_| [0.0; LANES].map(|_| f(0.0)))
+                .collect::<Vec<_>>()
+        };
+        let power = [(); 3].map(|_| fill(&mut |_| next() * 4.0));
+        let vis = [(); 3].map(|_| fill(&mut |_| next()));
+        let mut dir = [(); 3].map(|_| vec![[0.0; LANES]; groups]);
+        for i in 0..groups {
+            for l in 0..LANES {
+                let w =
+                    relight_sphere::warp::square_to_uniform_sphere(glam::Vec2::new(next(), next()));
+                for a in 0..3 {
+                    dir[a][i][l] = w[a];
+                }
+            }
+        }
+        let ring = fill(&mut |_| {
+            let u = next();
+            if u < 0.3 {
+                1.0
+            } else {
+                1.0 - u
+            }
+        });
+        (power, vis, dir, ring)
+    }
+
+    /// The AVX2 build gives the portable build's bits (Rust fuses no multiply-add itself).
+    #[test]
+    fn avx2_lanes_equal_the_portable_lanes() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+                println!("skipped: this CPU has no AVX2 + FMA");
+                return;
+            }
+            let (power, vis, dir, ring) = data();
+            let f = GgxFragment {
+                b: [0.2, 0.5, 0.3],
+                n: Vec3::new(0.3, 0.9, 0.1).normalize(),
+                v: Vec3::new(-0.2, 0.7, 0.6).normalize(),
+                a2: 0.04,
+            };
+            for spread in [false, true] {
+                let g = Groups {
+                    power: power.each_ref().map(|x| x.as_slice()),
+                    vis: vis.each_ref().map(|x| x.as_slice()),
+                    dir: dir.each_ref().map(|x| x.as_slice()),
+                    ring_cos: spread.then_some(ring.as_slice()),
+                };
+                // SAFETY: AVX2 and FMA checked above.
+                let fast = unsafe { ggx_avx2(&g, &f) };
+                assert_eq!(fast, ggx_body(&g, &f), "spread {spread}");
+                assert!(fast.min_element() > 0.0, "{fast}");
+            }
+        }
+    }
+}
