@@ -83,12 +83,15 @@ pub fn merge_cuts<const N: usize>(
         debug_assert!(!c.index.is_empty() && c.index.len() == c.leftleaf.len());
     }
     let mut pos = [0usize; N];
+    // Each cut's current node, reloaded only when the cut advances.
+    let mut index = cuts.map(|c| c.index[0]);
+    let mut leftleaf = cuts.map(|c| c.leftleaf[0]);
     loop {
         let mut min_index = u32::MAX;
         let mut max_leftleaf = 0u32;
         for j in 0..N {
-            min_index = min_index.min(cuts[j].index[pos[j]]);
-            max_leftleaf = max_leftleaf.max(cuts[j].leftleaf[pos[j]]);
+            min_index = min_index.min(index[j]);
+            max_leftleaf = max_leftleaf.max(leftleaf[j]);
         }
         if max_leftleaf <= min_index {
             // All current nodes overlap: the deepest one is a merged cluster.
@@ -100,13 +103,17 @@ pub fn merge_cuts<const N: usize>(
                 pos,
             );
         }
+        let mut done = false;
         for j in 0..N {
-            if cuts[j].index[pos[j]] == min_index {
-                pos[j] += 1;
-                if pos[j] == cuts[j].index.len() {
-                    return;
-                }
-            }
+            // Branch-free advance; a cut that ran out ends the traversal (all end together).
+            pos[j] += (index[j] == min_index) as usize;
+            let p = pos[j].min(cuts[j].index.len() - 1);
+            done |= pos[j] == cuts[j].index.len();
+            index[j] = cuts[j].index[p];
+            leftleaf[j] = cuts[j].leftleaf[p];
+        }
+        if done {
+            return;
         }
     }
 }
