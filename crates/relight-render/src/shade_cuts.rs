@@ -30,7 +30,7 @@
 //! [`CutFunction::Visibility`] it follows the mapped normal as the path tracer's does.
 
 mod corners;
-mod lanes;
+pub(crate) mod lanes;
 mod triangle;
 
 use crate::mapped::MappedMaterials;

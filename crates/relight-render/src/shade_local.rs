@@ -32,6 +32,7 @@
 use crate::light::{LightError, PointLight};
 use crate::mapped::MappedMaterials;
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
+use crate::shade_cuts::lanes::{lambert_points, PointGroups, LANES};
 use glam::Vec3;
 use rayon::prelude::*;
 use relight_bake::cuts::cut::dequantise;
@@ -324,20 +325,22 @@ thread_local! {
 
 /// One triangle's merged cut (its three vertex cuts and the light cut, sec. 3.2) with what
 /// each cluster `k` adds at a fragment: `|C'_k| <l>_k`, the corners' `<g_j>_k` and the
-/// cluster's position. Clusters no corner sees or that hold no light are dropped.
+/// cluster's position, as structure-of-arrays padded with zero clusters to a multiple of
+/// [`LANES`] (the Lambert sum runs over lanes, `crate::shade_cuts::lanes`). Clusters no
+/// corner sees or that hold no light are dropped.
 #[derive(Default)]
 struct TriangleMerge {
-    power: Vec<Vec3>,
-    g: Vec<[f32; 3]>,
-    position: Vec<Vec3>,
+    power: [Vec<f32>; 3],
+    g: [Vec<f32>; 3],
+    position: [Vec<f32>; 3],
 }
 
 impl TriangleMerge {
     /// Merge triangle `tri`'s vertex cuts with `l`'s light cut into `self`.
     fn build(&mut self, shader: &LocalShader<'_>, l: &LocalLighting, tri: u32) {
-        self.power.clear();
-        self.g.clear();
-        self.position.clear();
+        for a in [&mut self.power, &mut self.g, &mut self.position] {
+            a.iter_mut().for_each(Vec::clear);
+        }
         let [a, b, c] = shader.mesh.indices[tri as usize];
         let cuts = [a, b, c].map(|v| shader.bake.cuts.cut(v as usize));
         let keys = [
@@ -356,10 +359,30 @@ impl TriangleMerge {
             if q == [0; 3] || power == Vec3::ZERO {
                 return;
             }
-            self.power.push(power);
-            self.g.push(q.map(dequantise));
-            self.position.push(l.positions[node.index as usize]);
+            let p = l.positions[node.index as usize];
+            for j in 0..3 {
+                self.power[j].push(power[j]);
+                self.g[j].push(dequantise(q[j]));
+                self.position[j].push(p[j]);
+            }
         });
+        // Zero clusters pad the last lane group (they add 0).
+        let padded = self.power[0].len().next_multiple_of(LANES);
+        for a in [&mut self.power, &mut self.g, &mut self.position] {
+            a.iter_mut().for_each(|x| x.resize(padded, 0.0));
+        }
+    }
+
+    /// The clusters as lane groups.
+    fn groups(&self) -> PointGroups<'_> {
+        fn chunks(a: &[Vec<f32>; 3]) -> [&[[f32; LANES]]; 3] {
+            [0, 1, 2].map(|c| a[c].as_chunks::<LANES>().0)
+        }
+        PointGroups {
+            power: chunks(&self.power),
+            vis: chunks(&self.g),
+            pos: chunks(&self.position),
+        }
     }
 
     /// The one-bounce term at fragment `f` (as [`LocalShader::shade_fragment`]'s).
@@ -375,13 +398,9 @@ impl TriangleMerge {
         match (*material.material(), shader.function) {
             // eval = albedo / pi max(0, n . w): no frame needed.
             (Material::Lambert { albedo }, CutFunction::Visibility) => {
-                for k in 0..self.power.len() {
-                    let g = self.g[k];
-                    let v = b[0] * g[0] + b[1] * g[1] + b[2] * g[2];
-                    let w = (self.position[k] - f.position).normalize_or_zero();
-                    sum += self.power[k] * (v * n.dot(w).max(0.0));
-                }
-                sum * albedo * std::f32::consts::FRAC_1_PI
+                lambert_points(&self.groups(), b, n, f.position)
+                    * albedo
+                    * std::f32::consts::FRAC_1_PI
             }
             _ => {
                 let frame = material.material().shading_frame(n);
@@ -389,12 +408,14 @@ impl TriangleMerge {
                 if wi.z <= 0.0 {
                     return Vec3::ZERO;
                 }
-                for k in 0..self.power.len() {
-                    let g = self.g[k];
-                    let v = b[0] * g[0] + b[1] * g[1] + b[2] * g[2];
+                let at = |a: &[Vec<f32>; 3], k: usize| Vec3::new(a[0][k], a[1][k], a[2][k]);
+                for k in 0..self.power[0].len() {
+                    let g = at(&self.g, k);
+                    let v = b[0] * g.x + b[1] * g.y + b[2] * g.z;
                     if v > 0.0 {
-                        let w = (self.position[k] - f.position).normalize_or_zero();
-                        sum += self.power[k] * v * shader.brdf(material, wi, frame.to_local(w));
+                        let w = (at(&self.position, k) - f.position).normalize_or_zero();
+                        let fr = shader.brdf(material, wi, frame.to_local(w));
+                        sum += at(&self.power, k) * v * fr;
                     }
                 }
                 sum

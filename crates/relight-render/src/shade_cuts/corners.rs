@@ -38,7 +38,7 @@ use relight_bake::cuts::light_cut::LightCut;
 use relight_bake::cuts::merge::{merge_cuts, CutKeys};
 
 /// Lanes of the per-fragment sums (independent partial sums, one SIMD register each).
-pub(super) const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// Vertices merged per parallel task of [`CornerLists::build`] (and per stored part).
 const CHUNK: usize = 512;

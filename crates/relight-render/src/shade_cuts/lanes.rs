@@ -1,5 +1,5 @@
-//! The per-fragment sums of `shade_cuts::triangle` over [`LANES`]-wide groups of merged
-//! clusters, written so the compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]`
+//! The per-fragment sums of `shade_cuts::triangle` (and of the local-light bounce,
+//! `crate::shade_local`) over [`LANES`]-wide groups of merged clusters, written so the compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]`
 //! groups, no branch (masks become selects), and one body compiled twice, for the portable
 //! target and with AVX2 + FMA enabled (chosen at run time with `is_x86_feature_detected!`,
 //! like `shade_sh::avx2`). Rust never fuses a multiply and an add on its own, so the two
@@ -8,11 +8,11 @@
 //! Layout: structure-of-arrays, each array a whole number of groups (zero clusters pad the
 //! last one; they add `0`).
 
-use super::corners::LANES;
+pub(crate) use super::corners::LANES;
 use glam::Vec3;
 
 /// A fragment's view of one triangle's merged clusters (`shade_cuts::triangle::TriangleCut`).
-pub(super) struct Groups<'a> {
+pub(crate) struct Groups<'a> {
     /// `|C'_k| <L O>_k`, per colour channel.
     pub power: [&'a [[f32; LANES]]; 3],
     /// `<v_j>_k` of the corners `j`.
@@ -27,7 +27,7 @@ pub(super) struct Groups<'a> {
 
 /// The fragment-constant part of the GGX conductor's sum ([`ggx`]).
 #[derive(Clone, Copy)]
-pub(super) struct GgxFragment {
+pub(crate) struct GgxFragment {
     /// Barycentric weights of the corners.
     pub b: [f32; 3],
     /// Unit shading normal.
@@ -44,7 +44,7 @@ pub(super) struct GgxFragment {
 /// mean of it over `mu_k` and `mu_k cos theta_p +- sin theta_p s_k`, `+- sin theta_p t_k`
 /// (`s_k, t_k` the `relight_sphere::warp::Frame` of `mu_k`, branch-free, so built in the
 /// lanes): `LightCut::spread_average`'s directions.
-pub(super) fn ggx(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
+pub(crate) fn ggx(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU has AVX2 and FMA (just checked).
@@ -132,6 +132,60 @@ fn ggx_groups<const SPREAD: bool>(
             let p = &g.power[ch][i];
             for l in 0..LANES {
                 acc[ch][l] += p[l] * x[l];
+            }
+        }
+    }
+    Vec3::from_array(acc.map(|a| a.iter().sum()))
+}
+
+/// One triangle's merged clusters of the local-light bounce (`crate::shade_local`): each a
+/// cluster of surface samples at its luminance-weighted position.
+pub(crate) struct PointGroups<'a> {
+    /// `|C'_k| <l>_k`, per colour channel.
+    pub power: [&'a [[f32; LANES]]; 3],
+    /// `<g_j>_k` of the corners `j`.
+    pub vis: [&'a [[f32; LANES]]; 3],
+    /// The cluster's position, per axis.
+    pub pos: [&'a [[f32; LANES]]; 3],
+}
+
+/// `sum_k power_k (b . vis_k) max(0, n . w_k)` with `w_k` the unit direction from `x` to
+/// cluster `k`'s position (no term where it is `x` itself): the local bounce's Lambert sum
+/// over binary-visibility cuts without its `albedo / pi` (`crate::shade_local`).
+pub(crate) fn lambert_points(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Vec3 {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has AVX2 and FMA (just checked).
+        return unsafe { lambert_points_avx2(g, b, n, x) };
+    }
+    lambert_points_body(g, b, n, x)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn lambert_points_avx2(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Vec3 {
+    lambert_points_body(g, b, n, x)
+}
+
+#[inline(always)]
+fn lambert_points_body(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Vec3 {
+    let groups = g.pos[0].len();
+    let mut acc = [[0.0f32; LANES]; 3];
+    for i in 0..groups {
+        let (px, py, pz) = (&g.pos[0][i], &g.pos[1][i], &g.pos[2][i]);
+        let (v0, v1, v2) = (&g.vis[0][i], &g.vis[1][i], &g.vis[2][i]);
+        let mut y = [0.0f32; LANES];
+        for l in 0..LANES {
+            let (dx, dy, dz) = (px[l] - x.x, py[l] - x.y, pz[l] - x.z);
+            let d2 = dx * dx + dy * dy + dz * dz;
+            let c = (n.x * dx + n.y * dy + n.z * dz) / d2.sqrt();
+            let c = if d2 > 0.0 && c > 0.0 { c } else { 0.0 };
+            y[l] = (b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l]) * c;
+        }
+        for ch in 0..3 {
+            let p = &g.power[ch][i];
+            for l in 0..LANES {
+                acc[ch][l] += p[l] * y[l];
             }
         }
     }
