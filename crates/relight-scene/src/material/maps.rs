@@ -311,8 +311,8 @@ pub struct SceneMaps {
     /// Per material (parallel to `Scene::materials`); empty or `None`: constant.
     per_material: Vec<Option<Arc<MaterialMaps>>>,
     /// Per-vertex tangents with handedness ([`vertex_tangents`]); empty when no material
-    /// has a normal map.
-    tangents: Vec<Vec4>,
+    /// has a normal map. Shared, so a clone (a frame's shader) copies no per-vertex data.
+    tangents: Arc<[Vec4]>,
 }
 
 impl SceneMaps {
@@ -338,7 +338,8 @@ impl SceneMaps {
             vertex_tangents(mesh).unwrap_or_default()
         } else {
             Vec::new()
-        };
+        }
+        .into();
         Ok(SceneMaps {
             per_material,
             tangents,
