@@ -117,7 +117,7 @@ struct BenchArgs {
     #[arg(long)]
     quick: bool,
     /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
-    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, cuts-frame, vmf-fit, vmf-bake,
+    /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, cuts-frame, cuts-local, vmf-fit, vmf-bake,
     /// gpu (a build with `--features gpu`: GPU frames at 1280 x 720 against the CPU frames).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,

@@ -414,6 +414,7 @@ fn bench_json_lists_every_section_with_numbers() {
         "SG frame",
         "Cuts bake",
         "Cuts frame",
+        "Cuts local-light frame",
     ] {
         assert!(
             titles.iter().any(|t| t.starts_with(want)),

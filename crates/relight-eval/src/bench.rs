@@ -30,6 +30,8 @@
 //! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512): the corner lists
 //!     (once per light cut), then the frame split into G-buffer and shading, against the
 //!     per-triangle and the per-fragment merge in the same run.
+//! 11b. [`cuts_local`]: the cuts local-light frame (a room lit by a point light, one bounce)
+//!     against the per-fragment merge in the same run.
 //! 12. [`vmf_fit`]: the vMF material fit, EM (what the bake runs) against Levenberg-Marquardt
 //!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial
@@ -44,6 +46,7 @@
 
 pub mod cuts_bake;
 pub mod cuts_frame;
+pub mod cuts_local;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod hybrid;
@@ -226,7 +229,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 15] = [
+pub const SECTIONS: [&str; 16] = [
     "rays",
     "sh-bake",
     "shard",
@@ -239,6 +242,7 @@ pub const SECTIONS: [&str; 15] = [
     "sg-frame",
     "cuts-bake",
     "cuts-frame",
+    "cuts-local",
     "vmf-fit",
     "vmf-bake",
     "gpu",
@@ -325,6 +329,9 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
     }
     if on("cuts-frame") {
         push(cuts_frame::section(&a.bake_mesh, &a.data, a.quick)?);
+    }
+    if on("cuts-local") {
+        push(cuts_local::section(a.quick)?);
     }
     if on("vmf-fit") {
         push(vmf_fit::section(a.quick));

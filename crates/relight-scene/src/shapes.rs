@@ -81,6 +81,20 @@ pub fn ground_plane(center: Vec3, size: f32, divisions: u32) -> TriMesh {
     m
 }
 
+/// A closed room: [`aabb_box`] from `lo` to `hi` turned inside out (triangles wound and
+/// normals pointing inwards), its faces in the same order (`-x, +x, -y, +y, -z, +z`,
+/// `2 divisions^2` triangles each), for scenes lit from inside.
+pub fn inward_box(lo: Vec3, hi: Vec3, divisions: u32) -> TriMesh {
+    let mut m = aabb_box(lo, hi, divisions);
+    for t in &mut m.indices {
+        t.swap(1, 2);
+    }
+    for n in &mut m.normals {
+        *n = -*n;
+    }
+    m
+}
+
 /// An axis-aligned box from `lo` to `hi` with flat faces (24 vertices, 12 triangles), each
 /// face split into `divisions^2` quads.
 pub fn aabb_box(lo: Vec3, hi: Vec3, divisions: u32) -> TriMesh {
