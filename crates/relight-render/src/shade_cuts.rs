@@ -378,6 +378,19 @@ impl<'a> CutsShader<'a> {
                 (Material::GgxConductor { specular, alpha }, CutFunction::Visibility) => {
                     specular * t.ggx_sum(b, n, view, alpha)
                 }
+                // The GGX plastic likewise (its specular and diffuse terms).
+                (
+                    Material::GgxPlastic {
+                        diffuse,
+                        specular,
+                        alpha,
+                        ior,
+                    },
+                    CutFunction::Visibility,
+                ) => {
+                    let tables = material.plastic_tables().expect("a plastic's tables");
+                    t.plastic_sum(b, n, view, (diffuse, specular, alpha, ior), tables)
+                }
                 (m, _) => {
                     let frame = m.shading_frame(n);
                     let wi = frame.to_local(view);

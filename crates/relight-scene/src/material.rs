@@ -199,6 +199,13 @@ impl MaterialEval {
     pub fn eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
         self.material.eval_with(self.tables.as_deref(), wi, wo)
     }
+
+    /// The plastic's tables (`Some` exactly for [`Material::GgxPlastic`]), for renderers that
+    /// evaluate its terms themselves.
+    #[inline]
+    pub fn plastic_tables(&self) -> Option<&PlasticTables> {
+        self.tables.as_deref()
+    }
 }
 
 impl Material {

@@ -4,7 +4,8 @@
 //! The whole mesh (`bunny.obj`, else a procedural sphere on a plane) is baked once with the
 //! default settings (binary visibility) (32,768 lights; 4,096 with `quick`), then rendered at
 //! 512 x 512, one sample per pixel, under a sky with a sun
-//! ([`super::cuts_bake::sky_with_sun`]), for a Lambert and a GGX material at the light cuts
+//! ([`super::cuts_bake::sky_with_sun`]), for a Lambert, a GGX conductor and a GGX plastic
+//! material (glossy ones with the frame's default cluster spread) at the light cuts
 //! 128, 256 and 512 (256 only with `quick`). The default frame (`CutsShader::render`) first
 //! merges every vertex's cut with the light cut (`CutsShader::prepare`: once per light cut,
 //! timed apart, as a change of environment or rotation costs it), then each frame is split
@@ -94,6 +95,12 @@ pub(super) fn section(
             specular: Vec3::splat(0.9),
             alpha: 0.2,
         },
+        Material::GgxPlastic {
+            diffuse: Vec3::splat(0.5),
+            specular: Vec3::ONE,
+            alpha: 0.1,
+            ior: 1.5,
+        },
     ];
     // The default cut function only (the other one's frame differs in the Lambert sum).
     for function in [CutFunction::default()] {
@@ -161,7 +168,8 @@ pub(super) fn section(
                     json!(bake.cuts.mean_len()),
                     json!(match material {
                         Material::Lambert { .. } => "Lambert",
-                        _ => "GGX conductor a=0.2",
+                        Material::GgxConductor { .. } => "GGX conductor a=0.2",
+                        _ => "GGX plastic a=0.1",
                     }),
                     json!(budget),
                     json!(lists.map(|_| prepare)),

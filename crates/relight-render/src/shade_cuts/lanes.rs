@@ -10,6 +10,7 @@
 
 pub(crate) use super::corners::LANES;
 use glam::Vec3;
+use relight_scene::material::microfacet::TABLE_RES;
 
 /// A fragment's view of one triangle's merged clusters (`shade_cuts::triangle::TriangleCut`).
 pub(crate) struct Groups<'a> {
@@ -61,23 +62,97 @@ fn ggx_avx2(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
 
 #[inline(always)]
 fn ggx_body(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
-    match g.ring_cos {
-        None => ggx_groups::<false>(g, &[], f),
-        Some(c) => ggx_groups::<true>(g, c, f),
-    }
+    let [sum] = spread_sums(g, f.b, |x, y, z| {
+        let (_, hn, hh) = half_vector(f, x, y, z);
+        [ggx_term(f, x, y, z, hn, hh)]
+    });
+    sum
 }
 
-/// `G1(w) / s^2` of direction `w = (wx, wy, wz)` (unit), `0` unless `n . w > 0` and
-/// `n . h > 0`: with `h = v + w`, `c^2 = (n . h)^2 / |h|^2`, `s = (1 - c^2) / a^2 + c^2`
-/// (`D = 1 / (pi a^2 s^2)`) and `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`,
-/// `c_w = n . w` (height-separable Smith, `relight_scene::material::microfacet`).
+/// The fragment-constant part of the GGX plastic's sums ([`plastic`]).
+#[derive(Clone, Copy)]
+pub(crate) struct PlasticFragment<'a> {
+    /// The conductor's part (the specular lobe's `D G1`).
+    pub ggx: GgxFragment,
+    /// Relative index of refraction of the coating.
+    pub ior: f32,
+    /// `t(cos)` of `relight_scene::material::microfacet::PlasticTables`.
+    pub transmittance: &'a [f32; TABLE_RES],
+}
+
+/// The two sums of the GGX plastic of `Material::eval` without their fragment-constant
+/// factors, over the same clusters and five-point rules as [`ggx`]: the specular
+/// `sum_k power_k (b . vis_k) F(v . h) G1(w) / s^2` ([`ggx_term`] times the Fresnel
+/// reflectance of the coating, `microfacet::fresnel_dielectric`) and the diffuse
+/// `sum_k power_k (b . vis_k) max(0, n . w) t(n . w)` (the table's linear interpolation,
+/// `PlasticTables::transmittance`).
+pub(crate) fn plastic(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has AVX2 and FMA (just checked).
+        return unsafe { plastic_avx2(g, f) };
+    }
+    plastic_body(g, f)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+    plastic_body(g, f)
+}
+
 #[inline(always)]
-fn ggx_term(f: &GgxFragment, wx: f32, wy: f32, wz: f32) -> f32 {
-    let (n, v, a2) = (f.n, f.v, f.a2);
-    let co = n.x * wx + n.y * wy + n.z * wz;
-    let (hx, hy, hz) = (v.x + wx, v.y + wy, v.z + wz);
-    let hn = n.x * hx + n.y * hy + n.z * hz;
-    let c2 = hn * hn / (hx * hx + hy * hy + hz * hz);
+fn plastic_body(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+    let (gf, eta) = (&f.ggx, f.ior);
+    let (n, v) = (gf.n, gf.v);
+    // Two passes of one output each (the loop with two outputs did not vectorise).
+    let [spec] = spread_sums(g, gf.b, |x, y, z| {
+        let (h, hn, hh) = half_vector(gf, x, y, z);
+        // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0.
+        let ci = (v.x * h[0] + v.y * h[1] + v.z * h[2]) / hh.sqrt();
+        let sin2_t = (1.0 - ci * ci).max(0.0) / (eta * eta);
+        let ct = (1.0 - sin2_t).max(0.0).sqrt();
+        let rs = (ci - eta * ct) / (ci + eta * ct);
+        let rp = (eta * ci - ct) / (eta * ci + ct);
+        let fr = if sin2_t >= 1.0 {
+            1.0
+        } else {
+            0.5 * (rs * rs + rp * rp)
+        };
+        [ggx_term(gf, x, y, z, hn, hh) * fr]
+    });
+    let t = f.transmittance;
+    let [diff] = spread_sums(g, gf.b, |x, y, z| {
+        // t(cos), the table's linear interpolation.
+        let co = n.x * x + n.y * y + n.z * z;
+        let fi = co.clamp(0.0, 1.0) * (TABLE_RES - 1) as f32;
+        let i = (fi as i32).clamp(0, TABLE_RES as i32 - 2);
+        let w = fi - i as f32;
+        let tc = t[i as usize] * (1.0 - w) + t[i as usize + 1] * w;
+        [if co > 0.0 { co * tc } else { 0.0 }]
+    });
+    [spec, diff]
+}
+
+/// `h = v + w`, `n . h` and `|h|^2` for direction `(x, y, z)`.
+#[inline(always)]
+fn half_vector(f: &GgxFragment, x: f32, y: f32, z: f32) -> ([f32; 3], f32, f32) {
+    let (n, v) = (f.n, f.v);
+    let h = [v.x + x, v.y + y, v.z + z];
+    let hn = n.x * h[0] + n.y * h[1] + n.z * h[2];
+    (h, hn, h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+}
+
+/// `G1(w) / s^2` of unit direction `w = (x, y, z)` with `n . h` and `|h|^2` ([`half_vector`]),
+/// `0` unless `n . w > 0` and `n . h > 0`: `c^2 = (n . h)^2 / |h|^2`,
+/// `s = (1 - c^2) / a^2 + c^2` (`D = 1 / (pi a^2 s^2)`) and
+/// `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`, `c_w = n . w` (height-separable
+/// Smith, `relight_scene::material::microfacet`).
+#[inline(always)]
+fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> f32 {
+    let (n, a2) = (f.n, f.a2);
+    let co = n.x * x + n.y * y + n.z * z;
+    let c2 = hn * hn / hh;
     let s = (1.0 - c2) / a2 + c2;
     let co2 = co * co;
     let tan2 = (a2 * (1.0 - co2) / co2).max(0.0);
@@ -90,23 +165,38 @@ fn ggx_term(f: &GgxFragment, wx: f32, wy: f32, wz: f32) -> f32 {
     }
 }
 
+/// `sum_k power_k (b . vis_k) term_k` for each of the `K` outputs of `term` (a function of a
+/// unit direction), `term_k` at the cluster's direction or, where `g.ring_cos` is given, the
+/// five-point rule's mean ([`ggx`]).
 #[inline(always)]
-fn ggx_groups<const SPREAD: bool>(
+fn spread_sums<const K: usize>(
+    g: &Groups<'_>,
+    b: [f32; 3],
+    term: impl Fn(f32, f32, f32) -> [f32; K],
+) -> [Vec3; K] {
+    match g.ring_cos {
+        None => groups_sum::<false, K>(g, &[], b, term),
+        Some(c) => groups_sum::<true, K>(g, c, b, term),
+    }
+}
+
+#[inline(always)]
+fn groups_sum<const SPREAD: bool, const K: usize>(
     g: &Groups<'_>,
     ring_cos: &[[f32; LANES]],
-    f: &GgxFragment,
-) -> Vec3 {
-    let b = f.b;
+    b: [f32; 3],
+    term: impl Fn(f32, f32, f32) -> [f32; K],
+) -> [Vec3; K] {
     let groups = g.dir[0].len();
-    let mut acc = [[0.0f32; LANES]; 3];
+    let mut acc = [[[0.0f32; LANES]; 3]; K];
     for i in 0..groups {
         let (dx, dy, dz) = (&g.dir[0][i], &g.dir[1][i], &g.dir[2][i]);
         let (v0, v1, v2) = (&g.vis[0][i], &g.vis[1][i], &g.vis[2][i]);
         let rc = if SPREAD { &ring_cos[i] } else { &[1.0; LANES] };
-        let mut x = [0.0f32; LANES];
+        let mut x = [[0.0f32; LANES]; K];
         for l in 0..LANES {
             let (mx, my, mz) = (dx[l], dy[l], dz[l]);
-            let mut y = ggx_term(f, mx, my, mz);
+            let mut y = term(mx, my, mz);
             if SPREAD {
                 // relight_sphere::warp::Frame::from_normal(mu), then the four directions.
                 let c = rc[l];
@@ -119,23 +209,33 @@ fn ggx_groups<const SPREAD: bool>(
                 let (cx, cy, cz) = (mx * c, my * c, mz * c);
                 let (px, py, pz) = (sx * sn, sy * sn, sz * sn);
                 let (qx, qy, qz) = (tx * sn, ty * sn, tz * sn);
-                let ring = ggx_term(f, cx + px, cy + py, cz + pz)
-                    + ggx_term(f, cx - px, cy - py, cz - pz)
-                    + ggx_term(f, cx + qx, cy + qy, cz + qz)
-                    + ggx_term(f, cx - qx, cy - qy, cz - qz);
+                let r = [
+                    term(cx + px, cy + py, cz + pz),
+                    term(cx - px, cy - py, cz - pz),
+                    term(cx + qx, cy + qy, cz + qz),
+                    term(cx - qx, cy - qy, cz - qz),
+                ];
                 // One evaluation where the rule is off (`c == 1`: the ring is `mu` itself).
-                y = if c < 1.0 { (y + ring) * 0.2 } else { y };
+                for k in 0..K {
+                    let ring = r[0][k] + r[1][k] + r[2][k] + r[3][k];
+                    y[k] = if c < 1.0 { (y[k] + ring) * 0.2 } else { y[k] };
+                }
             }
-            x[l] = (b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l]) * y;
+            let vis = b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l];
+            for k in 0..K {
+                x[k][l] = vis * y[k];
+            }
         }
-        for ch in 0..3 {
-            let p = &g.power[ch][i];
-            for l in 0..LANES {
-                acc[ch][l] += p[l] * x[l];
+        for k in 0..K {
+            for ch in 0..3 {
+                let p = &g.power[ch][i];
+                for l in 0..LANES {
+                    acc[k][ch][l] += p[l] * x[k][l];
+                }
             }
         }
     }
-    Vec3::from_array(acc.map(|a| a.iter().sum()))
+    acc.map(|a| Vec3::from_array(a.map(|a| a.iter().sum())))
 }
 
 /// One triangle's merged clusters of the local-light bounce (`crate::shade_local`): each a
@@ -195,6 +295,7 @@ fn lambert_points_body(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Ve
 #[cfg(test)]
 mod tests {
     use super::*;
+    use relight_scene::material::microfacet::PlasticTables;
 
     /// Three groups of clusters with directions all over the sphere (some below the
     /// horizon), visibility in `[0, 1]` and rule angles from none to wide.
@@ -242,7 +343,7 @@ mod tests {
 
     /// The AVX2 build gives the portable build's bits (Rust fuses no multiply-add itself).
     #[test]
-    fn avx2_lanes_equal_the_portable_lanes() {
+    fn avx2_lanes_equal_the_portable_lanes_conductor_and_plastic() {
         #[cfg(target_arch = "x86_64")]
         {
             if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
@@ -267,6 +368,16 @@ mod tests {
                 let fast = unsafe { ggx_avx2(&g, &f) };
                 assert_eq!(fast, ggx_body(&g, &f), "spread {spread}");
                 assert!(fast.min_element() > 0.0, "{fast}");
+                let tables = PlasticTables::get(0.2, 1.5);
+                let p = PlasticFragment {
+                    ggx: f,
+                    ior: 1.5,
+                    transmittance: &tables.external_transmittance,
+                };
+                // SAFETY: as above.
+                let fast = unsafe { plastic_avx2(&g, &p) };
+                assert_eq!(fast, plastic_body(&g, &p), "plastic, spread {spread}");
+                assert!(fast[0].min_element() > 0.0 && fast[1].min_element() > 0.0);
             }
         }
     }

@@ -113,6 +113,12 @@ fn triangle_merge_equals_per_fragment_merge() {
             specular: Vec3::new(0.9, 0.6, 0.3),
             alpha: 0.2,
         },
+        Material::GgxPlastic {
+            diffuse: Vec3::new(0.5, 0.3, 0.2),
+            specular: Vec3::ONE,
+            alpha: 0.1,
+            ior: 1.5,
+        },
     ];
     // A sky brighter towards +x, so the sum depends on direction.
     let env = Environment::new(EnvMap::latlong_from_fn(32, 16, |d| {

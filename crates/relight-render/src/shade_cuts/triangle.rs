@@ -9,7 +9,7 @@ use glam::Vec3;
 use relight_bake::cuts::cut::dequantise;
 use relight_bake::cuts::light_cut::LightCut;
 use relight_bake::cuts::merge::{merge_cuts, CutKeys};
-use relight_scene::material::microfacet;
+use relight_scene::material::microfacet::{self, PlasticTables};
 use std::f32::consts::PI;
 
 thread_local! {
@@ -167,6 +167,37 @@ impl TriangleCut {
         // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
         let k = g1 / (4.0 * ci) / (PI * a2);
         lanes::ggx(&self.groups(), &lanes::GgxFragment { b, n, v, a2 }) * k
+    }
+
+    /// `sum_k power_k (b . vis_k) f(v, dir_k)` for the GGX plastic of `Material::eval`
+    /// (`f = specular F(v . h) D G1 G1 / (4 n.v) + diffuse / (1 - Fdr) / (pi eta^2) t(n.v)
+    /// t(n.w) n.w`), `tables` its `PlasticTables`, both terms over [`LANES`]
+    /// (`lanes::plastic`). `n . v > 0` (the caller's one-sided test).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn plastic_sum(
+        &self,
+        b: [f32; 3],
+        n: Vec3,
+        v: Vec3,
+        (diffuse, specular, alpha, ior): (Vec3, Vec3, f32, f32),
+        tables: &PlasticTables,
+    ) -> Vec3 {
+        let a2 = {
+            let a = alpha.max(microfacet::MIN_ALPHA);
+            a * a
+        };
+        let ci = n.dot(v);
+        let tan2 = a2 * (1.0 - ci * ci) / (ci * ci);
+        let g1 = 2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt());
+        let k = g1 / (4.0 * ci) / (PI * a2);
+        let f = lanes::PlasticFragment {
+            ggx: lanes::GgxFragment { b, n, v, a2 },
+            ior,
+            transmittance: &tables.external_transmittance,
+        };
+        let [spec, diff] = lanes::plastic(&self.groups(), &f);
+        let d = tables.transmittance(ci) / ((1.0 - tables.internal_reflectance) * PI * ior * ior);
+        specular * k * spec + diffuse * d * diff
     }
 
     /// The clusters as [`LANES`]-wide groups (padding included).
