@@ -29,9 +29,9 @@
 //!     variants.
 //! 11. [`cuts_frame`]: the cuts frame (512 x 512, light cuts 128/256/512): the corner lists
 //!     (once per light cut), then the frame split into G-buffer and shading, against the
-//!     per-triangle and the per-fragment merge in the same run.
-//! 11b. [`cuts_local`]: the cuts local-light frame (a room lit by a point light, one bounce)
-//!     against the per-fragment merge in the same run.
+//!     per-triangle and the per-fragment merge in the same run; [`cuts_local`]: the cuts
+//!     local-light frame (a room lit by a point light, one bounce) against the per-fragment
+//!     merge in the same run.
 //! 12. [`vmf_fit`]: the vMF material fit, EM (what the bake runs) against Levenberg-Marquardt
 //!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial

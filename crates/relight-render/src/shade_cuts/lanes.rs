@@ -180,6 +180,8 @@ fn spread_sums<const K: usize>(
     }
 }
 
+// Indexed loops over parallel arrays: the shape the vectoriser handles.
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn groups_sum<const SPREAD: bool, const K: usize>(
     g: &Groups<'_>,
@@ -267,6 +269,7 @@ fn lambert_points_avx2(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Ve
     lambert_points_body(g, b, n, x)
 }
 
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn lambert_points_body(g: &PointGroups<'_>, b: [f32; 3], n: Vec3, x: Vec3) -> Vec3 {
     let groups = g.pos[0].len();
@@ -297,14 +300,13 @@ mod tests {
     use super::*;
     use relight_scene::material::microfacet::PlasticTables;
 
+    /// One array of lane groups per channel or axis.
+    type Planes = [Vec<[f32; LANES]>; 3];
+
     /// Three groups of clusters with directions all over the sphere (some below the
-    /// horizon), visibility in `[0, 1]` and rule angles from none to wide.
-    fn data() -> (
-        [Vec<[f32; LANES]>; 3],
-        [Vec<[f32; LANES]>; 3],
-        [Vec<[f32; LANES]>; 3],
-        Vec<[f32; LANES]>,
-    ) {
+    /// horizon), visibility in `[0, 1]` and rule angles from none to wide: power, visibility,
+    /// direction, `cos theta_p`.
+    fn data() -> (Planes, Planes, Planes, Vec<[f32; LANES]>) {
         let mut rng = 0x2545_f491_u32;
         let mut next = || {
             rng ^= rng << 13;
@@ -313,24 +315,21 @@ mod tests {
             rng as f32 / u32::MAX as f32
         };
         let groups = 3;
-        let mut fill = |f: &mut dyn FnMut(f32) -> f32| {
+        let fill = |f: &mut dyn FnMut() -> f32| {
             (0..groups)
-                .map(|_| [0.0; LANES].map(|_| f(0.0)))
+                .map(|_| [0.0; LANES].map(|_| f()))
                 .collect::<Vec<_>>()
         };
-        let power = [(); 3].map(|_| fill(&mut |_| next() * 4.0));
-        let vis = [(); 3].map(|_| fill(&mut |_| next()));
-        let mut dir = [(); 3].map(|_| vec![[0.0; LANES]; groups]);
-        for i in 0..groups {
-            for l in 0..LANES {
-                let w =
-                    relight_sphere::warp::square_to_uniform_sphere(glam::Vec2::new(next(), next()));
-                for a in 0..3 {
-                    dir[a][i][l] = w[a];
-                }
-            }
+        let power = [(); 3].map(|_| fill(&mut || next() * 4.0));
+        let vis = [(); 3].map(|_| fill(&mut &mut next));
+        let mut dir: Planes = [(); 3].map(|_| vec![[0.0; LANES]; groups]);
+        for (i, l) in (0..groups).flat_map(|i| (0..LANES).map(move |l| (i, l))) {
+            let w = relight_sphere::warp::square_to_uniform_sphere(glam::Vec2::new(next(), next()));
+            dir.iter_mut()
+                .zip(w.to_array())
+                .for_each(|(d, x)| d[i][l] = x);
         }
-        let ring = fill(&mut |_| {
+        let ring = fill(&mut || {
             let u = next();
             if u < 0.3 {
                 1.0
