@@ -17,28 +17,14 @@ use relight_scene::accel::build_default;
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::scene::{Environment, Scene};
-use relight_scene::shapes::{aabb_box, uv_sphere};
+use relight_scene::shapes::{aabb_box, coloured_room, uv_sphere};
 use relight_scene::Vec3;
 use relight_sphere::envmap::EnvMap;
 
 /// A closed 2 x 2 x 2 room (walls facing in; left red, right green), a sphere and a box.
 fn room() -> Scene {
     let div = 4;
-    let mut mesh = aabb_box(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0), div);
-    for t in &mut mesh.indices {
-        t.swap(1, 2);
-    }
-    for n in &mut mesh.normals {
-        *n = -*n;
-    }
-    let per_face = (2 * div * div) as usize;
-    mesh.material_ids = (0..mesh.indices.len())
-        .map(|t| match t / per_face {
-            0 => 1,
-            1 => 2,
-            _ => 0,
-        })
-        .collect();
+    let mut mesh = coloured_room(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0), div);
     let mut sphere = uv_sphere(Vec3::new(-0.4, 0.35, -0.3), 0.35, 16, 32);
     sphere.material_ids = vec![0; sphere.indices.len()];
     mesh.append(&sphere, 0);

@@ -95,6 +95,21 @@ pub fn inward_box(lo: Vec3, hi: Vec3, divisions: u32) -> TriMesh {
     m
 }
 
+/// A Cornell-box-like room: [`inward_box`] from `lo` to `hi`, its `-x` wall material 1, its
+/// `+x` wall material 2, the floor, ceiling and the `-z` and `+z` walls material 0.
+pub fn coloured_room(lo: Vec3, hi: Vec3, divisions: u32) -> TriMesh {
+    let mut m = inward_box(lo, hi, divisions);
+    let per_face = (2 * divisions * divisions) as usize;
+    m.material_ids = (0..m.indices.len())
+        .map(|t| match t / per_face {
+            0 => 1,
+            1 => 2,
+            _ => 0,
+        })
+        .collect();
+    m
+}
+
 /// An axis-aligned box from `lo` to `hi` with flat faces (24 vertices, 12 triangles), each
 /// face split into `divisions^2` quads.
 pub fn aabb_box(lo: Vec3, hi: Vec3, divisions: u32) -> TriMesh {

@@ -24,22 +24,13 @@ use relight_scene::accel;
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
-use relight_scene::shapes::{aabb_box, inward_box, uv_sphere};
+use relight_scene::shapes::{aabb_box, coloured_room, uv_sphere};
 use serde_json::json;
 use std::time::Instant;
 
 /// The room and its materials (white, red, green).
 fn room() -> (TriMesh, Vec<Material>) {
-    let div = 12;
-    let mut m = inward_box(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0), div);
-    let per_face = (2 * div * div) as usize;
-    m.material_ids = (0..m.indices.len())
-        .map(|t| match t / per_face {
-            0 => 1,
-            1 => 2,
-            _ => 0,
-        })
-        .collect();
+    let mut m = coloured_room(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0), 12);
     m.append(&uv_sphere(Vec3::new(-0.4, 0.35, -0.3), 0.35, 24, 48), 0);
     m.append(
         &aabb_box(Vec3::new(0.1, 0.0, -0.2), Vec3::new(0.6, 0.6, 0.3), 2),

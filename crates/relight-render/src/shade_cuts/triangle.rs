@@ -157,15 +157,7 @@ impl TriangleCut {
     /// [`LANES`] partial sums: `n . h`, `tan^2` of `w` from `n . w`, and `G1(v, h)`, which
     /// depends on the fragment only, hoisted. `n . v > 0` (the caller's one-sided test).
     pub(super) fn ggx_sum(&self, b: [f32; 3], n: Vec3, v: Vec3, alpha: f32) -> Vec3 {
-        let a2 = {
-            let a = alpha.max(microfacet::MIN_ALPHA);
-            a * a
-        };
-        let ci = n.dot(v);
-        let tan2 = a2 * (1.0 - ci * ci) / (ci * ci);
-        let g1 = 2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt());
-        // D = 1 / (pi a^2 s^2) with s = (1 - (n.h)^2) / a^2 + (n.h)^2.
-        let k = g1 / (4.0 * ci) / (PI * a2);
+        let (a2, k) = ggx_constants(n, v, alpha);
         lanes::ggx(&self.groups(), &lanes::GgxFragment { b, n, v, a2 }) * k
     }
 
@@ -173,7 +165,6 @@ impl TriangleCut {
     /// (`f = specular F(v . h) D G1 G1 / (4 n.v) + diffuse / (1 - Fdr) / (pi eta^2) t(n.v)
     /// t(n.w) n.w`), `tables` its `PlasticTables`, both terms over [`LANES`]
     /// (`lanes::plastic`). `n . v > 0` (the caller's one-sided test).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn plastic_sum(
         &self,
         b: [f32; 3],
@@ -182,14 +173,8 @@ impl TriangleCut {
         (diffuse, specular, alpha, ior): (Vec3, Vec3, f32, f32),
         tables: &PlasticTables,
     ) -> Vec3 {
-        let a2 = {
-            let a = alpha.max(microfacet::MIN_ALPHA);
-            a * a
-        };
+        let (a2, k) = ggx_constants(n, v, alpha);
         let ci = n.dot(v);
-        let tan2 = a2 * (1.0 - ci * ci) / (ci * ci);
-        let g1 = 2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt());
-        let k = g1 / (4.0 * ci) / (PI * a2);
         let f = lanes::PlasticFragment {
             ggx: lanes::GgxFragment { b, n, v, a2 },
             ior,
@@ -214,4 +199,18 @@ impl TriangleCut {
                 .then(|| self.ring_cos[..self.len].as_chunks::<LANES>().0),
         }
     }
+}
+
+/// `alpha^2` (at least `MIN_ALPHA^2`) and the fragment-constant factor of the GGX lobe
+/// `G1(v) / (4 n.v) / (pi a^2)` (with `D = 1 / (pi a^2 s^2)`,
+/// `s = (1 - (n.h)^2) / a^2 + (n.h)^2`, the rest per direction in `lanes::ggx`).
+fn ggx_constants(n: Vec3, v: Vec3, alpha: f32) -> (f32, f32) {
+    let a2 = {
+        let a = alpha.max(microfacet::MIN_ALPHA);
+        a * a
+    };
+    let ci = n.dot(v);
+    let tan2 = a2 * (1.0 - ci * ci) / (ci * ci);
+    let g1 = 2.0 / (1.0 + (1.0 + tan2.max(0.0)).sqrt());
+    (a2, g1 / (4.0 * ci) / (PI * a2))
 }

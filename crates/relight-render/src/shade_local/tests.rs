@@ -7,7 +7,7 @@ use crate::pathtrace::{render_with_lights, PtSettings};
 use relight_bake::cuts::{bake_range, CutsBakeSettings, LightSampleKind};
 use relight_scene::accel::{build, Backend};
 use relight_scene::scene::{Environment, Scene};
-use relight_scene::shapes::{aabb_box, ground_plane, inward_box, uv_sphere};
+use relight_scene::shapes::{aabb_box, coloured_room, ground_plane, uv_sphere};
 use relight_sphere::EnvMap;
 
 /// Divisions of each room wall (quads per side).
@@ -16,20 +16,11 @@ const WALL_DIV: u32 = 6;
 /// A closed 2 x 2 x 2 room (walls facing in: left red, right green, the rest white), a
 /// sphere and a box inside; materials 0-2 are white, red, green.
 fn room() -> (TriMesh, Vec<Material>) {
-    let mut walls = inward_box(
+    let walls = coloured_room(
         Vec3::new(-1.0, 0.0, -1.0),
         Vec3::new(1.0, 2.0, 1.0),
         WALL_DIV,
     );
-    // Faces in order -x, +x, -y, +y, -z, +z, 2 div^2 triangles each.
-    let per_face = (2 * WALL_DIV * WALL_DIV) as usize;
-    walls.material_ids = (0..walls.indices.len())
-        .map(|t| match t / per_face {
-            0 => 1,
-            1 => 2,
-            _ => 0,
-        })
-        .collect();
     let mut mesh = walls;
     mesh.append(&uv_sphere(Vec3::new(-0.4, 0.35, -0.3), 0.35, 10, 20), 0);
     mesh.append(
