@@ -70,10 +70,6 @@ pub struct LightCut {
     /// Every tree node's `cos theta_p` of the five-point rule (module docs), by post-order
     /// index.
     pub spread_cos: Vec<f32>,
-    /// Every tree node's four off-centre directions of the five-point rule (module docs),
-    /// by post-order index: computed once per cut, so a frame evaluating the rule at every
-    /// pixel ([`LightCut::spread_directions`]) builds no frame per cluster.
-    pub spread_dirs: Vec<[Vec3; 4]>,
 }
 
 impl LightCut {
@@ -95,19 +91,24 @@ impl LightCut {
     #[inline]
     pub fn spread_average(&self, node: u32, mut brdf: impl FnMut(Vec3) -> Vec3) -> Vec3 {
         let mu = self.direction(node);
-        match self.spread_directions(node) {
-            None => brdf(mu),
-            Some(around) => (brdf(mu) + around.iter().map(|&w| brdf(w)).sum::<Vec3>()) * 0.2,
+        if !self.spreads(node) {
+            return brdf(mu);
         }
+        let c = self.spread_cos[node as usize];
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        let f = relight_sphere::warp::Frame::from_normal(mu);
+        let mut sum = brdf(mu);
+        for (x, y) in [(s, 0.0), (-s, 0.0), (0.0, s), (0.0, -s)] {
+            sum += brdf(f.s * x + f.t * y + f.n * c);
+        }
+        sum * 0.2
     }
 
-    /// The four directions around tree node `node`'s direction at which the five-point rule
-    /// evaluates a BRDF besides the direction itself (module docs, "Cluster spread"), each
-    /// weighted 1/5 like it; `None` for a cluster narrower than [`SPREAD_MIN_ANGLE`], shaded
-    /// at its direction alone.
+    /// Whether tree node `node`'s cluster is averaged by the five-point rule
+    /// ([`LightCut::spread_average`]): wider than [`SPREAD_MIN_ANGLE`].
     #[inline]
-    pub fn spread_directions(&self, node: u32) -> Option<&[Vec3; 4]> {
-        (self.spread_cos[node as usize] < SPREAD_MIN_COS).then(|| &self.spread_dirs[node as usize])
+    pub fn spreads(&self, node: u32) -> bool {
+        self.spread_cos[node as usize] < SPREAD_MIN_COS
     }
 
     /// Whether the cut has no node (never for a built cut).
@@ -183,11 +184,6 @@ impl LightCut {
             })
             .collect();
         let (dirs, spread_cos) = weighted_directions(tree, &y);
-        let spread_dirs = dirs
-            .iter()
-            .zip(&spread_cos)
-            .map(|(&mu, &c)| five_point_ring(mu, c))
-            .collect();
         Ok(LightCut {
             leftleaf: index.iter().map(|&p| tree.node(p).leftleaf).collect(),
             index,
@@ -195,17 +191,8 @@ impl LightCut {
             error_bound_met,
             dirs,
             spread_cos,
-            spread_dirs,
         })
     }
-}
-
-/// The four directions of the five-point rule around unit `mu` at angle `acos(c)` (module
-/// docs, "Cluster spread"): `mu c + sin theta_p (+-s, +-t)` in a frame around `mu`.
-fn five_point_ring(mu: Vec3, c: f32) -> [Vec3; 4] {
-    let s = (1.0 - c * c).max(0.0).sqrt();
-    let f = relight_sphere::warp::Frame::from_normal(mu);
-    [(s, 0.0), (-s, 0.0), (0.0, s), (0.0, -s)].map(|(x, y)| f.s * x + f.t * y + f.n * c)
 }
 
 /// Every node's `(sum_i w_i at(i), sum_i w_i)` over its leaves `i` (`at` of a leaf's node

@@ -100,9 +100,10 @@ impl TriangleCut {
             }
             let dir = light.direction(node.index);
             self.node[n] = node.index;
-            self.ring_cos[n] = match spread.then(|| light.spread_directions(node.index)) {
-                Some(Some(_)) => light.spread_cos[node.index as usize],
-                _ => 1.0,
+            self.ring_cos[n] = if spread && light.spreads(node.index) {
+                light.spread_cos[node.index as usize]
+            } else {
+                1.0
             };
             for j in 0..3 {
                 let v = dequantise(q[j]);
