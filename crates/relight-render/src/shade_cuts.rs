@@ -314,20 +314,12 @@ impl<'a> CutsShader<'a> {
         out: &mut [Vec3],
     ) {
         let corners = self.mesh.indices[tri as usize];
-        for (f, o) in fs.iter().zip(out.iter_mut()) {
-            debug_assert_eq!(f.tri, tri);
-            let mut owned = None;
-            let (material, n) = self.material_at(f, &mut owned);
-            let view = (eye - f.position).normalize_or_zero();
-            if view.dot(n) <= 0.0 {
-                *o = Vec3::ZERO; // one-sided materials, as the path tracer's
-                continue;
-            }
+        self.shade_fragments(tri, fs, eye, out, |f, material, n, _| {
             let b = f.bary;
             let by_corner = |sum: &dyn Fn(u32) -> Vec3| -> Vec3 {
                 sum(corners[0]) * b[0] + sum(corners[1]) * b[1] + sum(corners[2]) * b[2]
             };
-            *o = match (*material.material(), self.function) {
+            match (*material.material(), self.function) {
                 // eval / cos = albedo / pi for every cluster: the sum factors per corner.
                 (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
                     albedo * FRAC_1_PI * by_corner(&|v| lists.sum(v))
@@ -337,8 +329,8 @@ impl<'a> CutsShader<'a> {
                     albedo * FRAC_1_PI * by_corner(&|v| lists.lambert(v, n))
                 }
                 _ => self.shade_fragment(light, f, eye),
-            };
-        }
+            }
+        })
     }
 
     /// Eq. 5 at each fragment of triangle `tri` from its merged cut `t`.
@@ -351,17 +343,9 @@ impl<'a> CutsShader<'a> {
         eye: Vec3,
         out: &mut [Vec3],
     ) {
-        for (f, o) in fs.iter().zip(out.iter_mut()) {
-            debug_assert_eq!(f.tri, tri);
-            let mut owned = None;
-            let (material, n) = self.material_at(f, &mut owned);
-            let view = (eye - f.position).normalize_or_zero();
-            if view.dot(n) <= 0.0 {
-                *o = Vec3::ZERO; // one-sided materials, as the path tracer's
-                continue;
-            }
+        self.shade_fragments(tri, fs, eye, out, |f, material, n, view| {
             let b = f.bary;
-            *o = match (*material.material(), self.function) {
+            match (*material.material(), self.function) {
                 // eval / cos = albedo / pi for every cluster: the sum factors per corner
                 // (the sums are those of whole clusters, spread or not).
                 (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
@@ -409,6 +393,31 @@ impl<'a> CutsShader<'a> {
                     }
                     sum
                 }
+            }
+        })
+    }
+
+    /// `shade(f, material, n, view)` into `out` for each fragment `f` of triangle `tri`, with
+    /// its prepared material and shading normal ([`CutsShader::material_at`]) and the unit
+    /// direction to `eye`; black where `view . n <= 0` (one-sided materials, as the path
+    /// tracer's).
+    fn shade_fragments(
+        &self,
+        tri: u32,
+        fs: &[Fragment],
+        eye: Vec3,
+        out: &mut [Vec3],
+        shade: impl Fn(&Fragment, &MaterialEval, Vec3, Vec3) -> Vec3,
+    ) {
+        for (f, o) in fs.iter().zip(out.iter_mut()) {
+            debug_assert_eq!(f.tri, tri);
+            let mut owned = None;
+            let (material, n) = self.material_at(f, &mut owned);
+            let view = (eye - f.position).normalize_or_zero();
+            *o = if view.dot(n) <= 0.0 {
+                Vec3::ZERO
+            } else {
+                shade(f, material, n, view)
             };
         }
     }
