@@ -208,10 +208,7 @@ impl<'a> CutsShader<'a> {
                 Some(lit) if matches!(constant, Material::Lambert { .. }) => {
                     self.shade_corners(light, &lit.lists, tri, fs, eye, out)
                 }
-                _ => TRIANGLE_CUT.with_borrow_mut(|t| {
-                    t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
-                    self.shade_triangle(light, t, tri, fs, eye, out);
-                }),
+                _ => self.merge_and_shade(light, constant, tri, fs, eye, out),
             }
         })
     }
@@ -274,10 +271,24 @@ impl<'a> CutsShader<'a> {
                 .materials
                 .of_triangle(self.mesh, tri as usize)
                 .material();
-            TRIANGLE_CUT.with_borrow_mut(|t| {
-                t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
-                self.shade_triangle(light, t, tri, fs, eye, out);
-            })
+            self.merge_and_shade(light, constant, tri, fs, eye, out)
+        })
+    }
+
+    /// Triangle `tri`'s cuts merged with `light` (for the cluster spread if its material
+    /// `constant` is glossy and the spread is on) and its fragments shaded from them.
+    fn merge_and_shade(
+        &self,
+        light: &LightCut,
+        constant: &Material,
+        tri: u32,
+        fs: &[Fragment],
+        eye: Vec3,
+        out: &mut [Vec3],
+    ) {
+        TRIANGLE_CUT.with_borrow_mut(|t| {
+            t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
+            self.shade_triangle(light, t, tri, fs, eye, out);
         })
     }
 
