@@ -78,12 +78,11 @@ pub enum MethodKind {
     /// View-dependent glossy PRT with spherical Gaussians (Green 2005).
     Sg,
     /// Precomputed visibility cuts merged per pixel with the illumination cut, materials
-    /// evaluated at render time (Cheslack-Postava et al. 2008). A preview: environment light
-    /// only, no textures or local lights yet, and not yet checked against Mitsuba (issue 11).
+    /// evaluated at render time, with texture and normal maps, and point or spot lights with
+    /// one bounce in surface-sample bakes (Cheslack-Postava et al. 2008).
     Cuts,
     /// View-dependent glossy PRT with one von Mises-Fisher lobe per light-path class,
-    /// estimated in closed form from traced paths (Laurijssen & Dutré 2009). In progress
-    /// (issue 12).
+    /// estimated in closed form from traced paths (Laurijssen & Dutré 2009).
     Vmf,
 }
 

@@ -105,19 +105,22 @@ fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
 fn plastic_body(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
     let (n, v) = (gf.n, gf.v);
+    let inv_eta2 = 1.0 / (eta * eta);
     // Two passes of one output each (the loop with two outputs did not vectorise).
     let [spec] = spread_sums(g, gf.b, |x, y, z| {
         let (h, hn, hh) = half_vector(gf, x, y, z);
         // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0.
         let ci = (v.x * h[0] + v.y * h[1] + v.z * h[2]) / hh.sqrt();
-        let sin2_t = (1.0 - ci * ci).max(0.0) / (eta * eta);
+        let sin2_t = (1.0 - ci * ci).max(0.0) * inv_eta2;
         let ct = (1.0 - sin2_t).max(0.0).sqrt();
-        let rs = (ci - eta * ct) / (ci + eta * ct);
-        let rp = (eta * ci - ct) / (eta * ci + ct);
+        // `(rs^2 + rp^2) / 2` over one division: `rs = a / b`, `rp = c / d`.
+        let (a, b) = (ci - eta * ct, ci + eta * ct);
+        let (c, d) = (eta * ci - ct, eta * ci + ct);
+        let (bd, ad, cb) = (b * d, a * d, c * b);
         let fr = if sin2_t >= 1.0 {
             1.0
         } else {
-            0.5 * (rs * rs + rp * rp)
+            0.5 * (ad * ad + cb * cb) / (bd * bd)
         };
         [ggx_term(gf, x, y, z, hn, hh) * fr]
     });
@@ -147,17 +150,19 @@ fn half_vector(f: &GgxFragment, x: f32, y: f32, z: f32) -> ([f32; 3], f32, f32) 
 /// `0` unless `n . w > 0` and `n . h > 0`: `c^2 = (n . h)^2 / |h|^2`,
 /// `s = (1 - c^2) / a^2 + c^2` (`D = 1 / (pi a^2 s^2)`) and
 /// `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`, `c_w = n . w` (height-separable
-/// Smith, `relight_scene::material::microfacet`).
+/// Smith, `relight_scene::material::microfacet`). Computed with one division and one square
+/// root (the five of the definition dominated the lanes): with `t = |h|^2 - (n . h)^2
+/// (1 - a^2) = a^2 |h|^2 s` and `q = c_w^2 + a^2 max(0, 1 - c_w^2) = c_w^2 (1 + tan^2)`,
+/// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`.
 #[inline(always)]
 fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> f32 {
     let (n, a2) = (f.n, f.a2);
     let co = n.x * x + n.y * y + n.z * z;
-    let c2 = hn * hn / hh;
-    let s = (1.0 - c2) / a2 + c2;
     let co2 = co * co;
-    let tan2 = (a2 * (1.0 - co2) / co2).max(0.0);
-    let g1 = 2.0 / (1.0 + (1.0 + tan2).sqrt());
-    let y = g1 / (s * s);
+    let t = hh - hn * hn * (1.0 - a2);
+    let q = co2 + a2 * (1.0 - co2).max(0.0);
+    let a2hh = a2 * hh;
+    let y = 2.0 * co * a2hh * a2hh / ((co + q.sqrt()) * (t * t));
     if co > 0.0 && hn > 0.0 {
         y
     } else {
