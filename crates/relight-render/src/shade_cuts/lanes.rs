@@ -92,17 +92,19 @@ pub(crate) fn plastic(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
         // SAFETY: the CPU has AVX2 and FMA (just checked).
         return unsafe { plastic_avx2(g, f) };
     }
-    plastic_body(g, f)
+    plastic_body::<false>(g, f)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
-    plastic_body(g, f)
+    plastic_body::<true>(g, f)
 }
 
+/// The plastic's sums; `GATHER` (only from [`plastic_avx2`]) looks the table up with AVX2
+/// gathers.
 #[inline(always)]
-fn plastic_body(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
     let (n, v) = (gf.n, gf.v);
     let inv_eta2 = 1.0 / (eta * eta);
@@ -124,17 +126,72 @@ fn plastic_body(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
         };
         [ggx_term(gf, x, y, z, hn, hh) * fr]
     });
+    // `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the table's lookup, a gather).
     let t = f.transmittance;
-    let [diff] = spread_sums(g, gf.b, |x, y, z| {
-        // t(cos), the table's linear interpolation.
-        let co = n.x * x + n.y * y + n.z * z;
-        let fi = co.clamp(0.0, 1.0) * (TABLE_RES - 1) as f32;
-        let i = (fi as i32).clamp(0, TABLE_RES as i32 - 2);
-        let w = fi - i as f32;
-        let tc = t[i as usize] * (1.0 - w) + t[i as usize + 1] * w;
-        [if co > 0.0 { co * tc } else { 0.0 }]
-    });
+    let [diff] = spread_sums_post(
+        g,
+        gf.b,
+        |x, y, z| [n.x * x + n.y * y + n.z * z],
+        |co| cos_transmittance::<GATHER>(t, co),
+    );
     [spec, diff]
+}
+
+/// `max(0, c) t(c)` for each cosine `c` of `co`, `t(c)` the linear interpolation of the
+/// table `t` of `relight_scene::material::microfacet::PlasticTables::transmittance` (the
+/// same arithmetic as its lookup, in the lanes). With `GATHER` (AVX2 builds only) its two
+/// reads are AVX2 gathers, which the vectoriser does not emit on its own; the results are
+/// the same bits.
+#[inline(always)]
+fn cos_transmittance<const GATHER: bool>(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
+    #[cfg(target_arch = "x86_64")]
+    if GATHER {
+        // SAFETY: `GATHER` is set only by `plastic_avx2`, run after the CPU's check.
+        unsafe { cos_transmittance_avx2(t, co) };
+        return;
+    }
+    for c in co.iter_mut() {
+        let fi = c.clamp(0.0, 1.0) * (TABLE_RES - 1) as f32;
+        let i = (fi as i32).clamp(0, TABLE_RES as i32 - 2) as usize;
+        let w = fi - i as f32;
+        let tc = t[i] * (1.0 - w) + t[i + 1] * w;
+        *c = if *c > 0.0 { *c * tc } else { 0.0 };
+    }
+}
+
+/// [`cos_transmittance`] over AVX2: the same operations in the same order (no fused
+/// multiply-add), the table read by two gathers of in-range indices.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
+    use std::arch::x86_64::*;
+    const _: () = assert!(LANES == 8);
+    // SAFETY: `co` holds 8 floats; every gathered index is clamped to `0..=TABLE_RES - 2`,
+    // so both reads (`i` and `i + 1`) stay inside `t`.
+    unsafe {
+        let c = _mm256_loadu_ps(co.as_ptr());
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
+        // `clamp(0, 1)` as `f32::clamp` (no NaN reaches it: unit directions).
+        let fi = _mm256_mul_ps(
+            _mm256_min_ps(_mm256_max_ps(c, zero), one),
+            _mm256_set1_ps((TABLE_RES - 1) as f32),
+        );
+        let i = _mm256_min_epi32(
+            _mm256_max_epi32(_mm256_cvttps_epi32(fi), _mm256_setzero_si256()),
+            _mm256_set1_epi32(TABLE_RES as i32 - 2),
+        );
+        let w = _mm256_sub_ps(fi, _mm256_cvtepi32_ps(i));
+        let t0 = _mm256_i32gather_ps::<4>(t.as_ptr(), i);
+        let t1 = _mm256_i32gather_ps::<4>(t.as_ptr().add(1), i);
+        let tc = _mm256_add_ps(
+            _mm256_mul_ps(t0, _mm256_sub_ps(one, w)),
+            _mm256_mul_ps(t1, w),
+        );
+        let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(c, zero);
+        let y = _mm256_and_ps(_mm256_mul_ps(c, tc), positive);
+        _mm256_storeu_ps(co.as_mut_ptr(), y);
+    }
 }
 
 /// `h = v + w`, `n . h` and `|h|^2` for direction `(x, y, z)`.
@@ -185,6 +242,44 @@ fn spread_sums<const K: usize>(
     }
 }
 
+/// [`spread_sums`] with `post` applied to the term's values of one direction over the
+/// lanes, between evaluation and sum ([`groups_sum_post`]).
+#[inline(always)]
+fn spread_sums_post<const K: usize>(
+    g: &Groups<'_>,
+    b: [f32; 3],
+    term: impl Fn(f32, f32, f32) -> [f32; K],
+    post: impl Fn(&mut [f32; LANES]),
+) -> [Vec3; K] {
+    match g.ring_cos {
+        None => groups_sum_post::<false, K>(g, &[], b, term, post),
+        Some(c) => groups_sum_post::<true, K>(g, c, b, term, post),
+    }
+}
+
+/// The four directions of the five-point rule around unit `mu = (mx, my, mz)` at
+/// `cos theta_p = c` ([`relight_bake::cuts::light_cut::LightCut::spread_average`]):
+/// `relight_sphere::warp::Frame::from_normal(mu)` (branch-free), then
+/// `mu c +- s sin theta_p`, `mu c +- t sin theta_p`.
+#[inline(always)]
+fn ring(mx: f32, my: f32, mz: f32, c: f32) -> [(f32, f32, f32); 4] {
+    let sn = (1.0 - c * c).max(0.0).sqrt();
+    let sign = 1.0f32.copysign(mz);
+    let a = -1.0 / (sign + mz);
+    let bb = mx * my * a;
+    let (sx, sy, sz) = (1.0 + sign * mx * mx * a, sign * bb, -sign * mx);
+    let (tx, ty, tz) = (bb, sign + my * my * a, -my);
+    let (cx, cy, cz) = (mx * c, my * c, mz * c);
+    let (px, py, pz) = (sx * sn, sy * sn, sz * sn);
+    let (qx, qy, qz) = (tx * sn, ty * sn, tz * sn);
+    [
+        (cx + px, cy + py, cz + pz),
+        (cx - px, cy - py, cz - pz),
+        (cx + qx, cy + qy, cz + qz),
+        (cx - qx, cy - qy, cz - qz),
+    ]
+}
+
 // Indexed loops over parallel arrays: the shape the vectoriser handles.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
@@ -205,22 +300,14 @@ fn groups_sum<const SPREAD: bool, const K: usize>(
             let (mx, my, mz) = (dx[l], dy[l], dz[l]);
             let mut y = term(mx, my, mz);
             if SPREAD {
-                // relight_sphere::warp::Frame::from_normal(mu), then the four directions.
                 let c = rc[l];
-                let sn = (1.0 - c * c).max(0.0).sqrt();
-                let sign = 1.0f32.copysign(mz);
-                let a = -1.0 / (sign + mz);
-                let bb = mx * my * a;
-                let (sx, sy, sz) = (1.0 + sign * mx * mx * a, sign * bb, -sign * mx);
-                let (tx, ty, tz) = (bb, sign + my * my * a, -my);
-                let (cx, cy, cz) = (mx * c, my * c, mz * c);
-                let (px, py, pz) = (sx * sn, sy * sn, sz * sn);
-                let (qx, qy, qz) = (tx * sn, ty * sn, tz * sn);
+                // Indexed, not `array::map` (whose closure is not inlined into the AVX2 build).
+                let d = ring(mx, my, mz, c);
                 let r = [
-                    term(cx + px, cy + py, cz + pz),
-                    term(cx - px, cy - py, cz - pz),
-                    term(cx + qx, cy + qy, cz + qz),
-                    term(cx - qx, cy - qy, cz - qz),
+                    term(d[0].0, d[0].1, d[0].2),
+                    term(d[1].0, d[1].1, d[1].2),
+                    term(d[2].0, d[2].1, d[2].2),
+                    term(d[3].0, d[3].1, d[3].2),
                 ];
                 // One evaluation where the rule is off (`c == 1`: the ring is `mu` itself).
                 for k in 0..K {
@@ -231,6 +318,81 @@ fn groups_sum<const SPREAD: bool, const K: usize>(
             let vis = b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l];
             for k in 0..K {
                 x[k][l] = vis * y[k];
+            }
+        }
+        for k in 0..K {
+            for ch in 0..3 {
+                let p = &g.power[ch][i];
+                for l in 0..LANES {
+                    acc[k][ch][l] += p[l] * x[k][l];
+                }
+            }
+        }
+    }
+    acc.map(|a| Vec3::from_array(a.map(|a| a.iter().sum())))
+}
+
+/// [`groups_sum`] with `post` applied to each direction's lanes of the term between
+/// evaluation and sum.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn groups_sum_post<const SPREAD: bool, const K: usize>(
+    g: &Groups<'_>,
+    ring_cos: &[[f32; LANES]],
+    b: [f32; 3],
+    term: impl Fn(f32, f32, f32) -> [f32; K],
+    post: impl Fn(&mut [f32; LANES]),
+) -> [Vec3; K] {
+    // Two loops over the lanes per group: the term at the rule's directions, then `post` on
+    // each direction's lanes and the weighted sums. A `post` the vectoriser cannot handle
+    // itself (the plastic's table lookup, gathered explicitly) stays out of the first loop.
+    const D: usize = 5;
+    let groups = g.dir[0].len();
+    let mut acc = [[[0.0f32; LANES]; 3]; K];
+    for i in 0..groups {
+        let (dx, dy, dz) = (&g.dir[0][i], &g.dir[1][i], &g.dir[2][i]);
+        let (v0, v1, v2) = (&g.vis[0][i], &g.vis[1][i], &g.vis[2][i]);
+        let rc = if SPREAD { &ring_cos[i] } else { &[1.0; LANES] };
+        // The term at `mu` and, with the spread, at the four directions of its rule.
+        let mut y = [[[0.0f32; LANES]; K]; D];
+        for l in 0..LANES {
+            let (mx, my, mz) = (dx[l], dy[l], dz[l]);
+            let t = term(mx, my, mz);
+            for k in 0..K {
+                y[0][k][l] = t[k];
+            }
+            if SPREAD {
+                let c = rc[l];
+                // Indexed, not `array::map` (whose closure is not inlined into the AVX2 build).
+                let d = ring(mx, my, mz, c);
+                let r = [
+                    term(d[0].0, d[0].1, d[0].2),
+                    term(d[1].0, d[1].1, d[1].2),
+                    term(d[2].0, d[2].1, d[2].2),
+                    term(d[3].0, d[3].1, d[3].2),
+                ];
+                for (d, t) in r.iter().enumerate() {
+                    for k in 0..K {
+                        y[d + 1][k][l] = t[k];
+                    }
+                }
+            }
+        }
+        for y in &mut y[..if SPREAD { D } else { 1 }] {
+            y.iter_mut().for_each(&post);
+        }
+        // The rule's mean (one evaluation where it is off, `c == 1`: the ring is
+        // `mu` itself), times the interpolated visibility.
+        let mut x = [[0.0f32; LANES]; K];
+        for l in 0..LANES {
+            let vis = b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l];
+            for k in 0..K {
+                let mut f = y[0][k][l];
+                if SPREAD {
+                    let ring = y[1][k][l] + y[2][k][l] + y[3][k][l] + y[4][k][l];
+                    f = if rc[l] < 1.0 { (f + ring) * 0.2 } else { f };
+                }
+                x[k][l] = vis * f;
             }
         }
         for k in 0..K {
@@ -380,7 +542,11 @@ mod tests {
                 };
                 // SAFETY: as above.
                 let fast = unsafe { plastic_avx2(&g, &p) };
-                assert_eq!(fast, plastic_body(&g, &p), "plastic, spread {spread}");
+                assert_eq!(
+                    fast,
+                    plastic_body::<false>(&g, &p),
+                    "plastic, spread {spread}"
+                );
                 assert!(fast[0].min_element() > 0.0 && fast[1].min_element() > 0.0);
             }
         }
