@@ -20,7 +20,14 @@ format). The Mitsuba scene built from it:
     `cutoff_angle`, `beam_width`, rgb `intensity`);
   * one `ply` shape per material, `face_normals = False` (interpolated vertex normals), with
     `diffuse`, `roughconductor` (ggx, material "none", visible-normal sampling) or
-    `roughplastic` (ggx, linear) BSDFs;
+    `roughplastic` (ggx, linear) BSDFs, possibly wrapped in a `normalmap` BSDF;
+  * a parameter given as `{"bitmap": file}` is a `bitmap` texture of that linear EXR (`raw`,
+    bilinear, repeat); with `"channel": c` only channel `c` is kept (a one-channel bitmap, for
+    a scalar such as `alpha`). The PLY's `v` and the EXR's rows are already in Mitsuba's
+    placement (`relight_render::mitsuba`, "Texture and normal maps");
+  * a `normalmap` BSDF is loaded with `use_shadowing_function = False` and
+    `flip_invalid_normals = False` (both on by default in Mitsuba 3.9, neither in relight;
+    Mitsuba versions without these properties refuse the scene rather than render another);
   * the `path` integrator with `max_depth` (2 = direct only, -1 = unlimited) and
     `hide_emitters`.
 RGB variants only (spectral ones multiply the emitter by D65). `auto` takes `llvm_ad_rgb` when
@@ -57,19 +64,57 @@ def rgb(value):
     return {"type": "rgb", "value": [float(x) for x in value]}
 
 
-def bsdf_dict(b):
-    """Mitsuba BSDF dictionary of a relight `bsdf` entry."""
+def bitmap(entry, base_dir):
+    """A `bitmap` texture dictionary of a `{"bitmap": file[, "channel": c]}` entry (a channel
+    is read with Mitsuba, whose variant must be set)."""
+    path = os.path.join(base_dir, entry["bitmap"])
+    d = {"type": "bitmap", "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+    if "channel" in entry:
+        import mitsuba as mi
+        import numpy as np
+
+        c = int(entry["channel"])
+        texels = np.array(mi.Bitmap(path), dtype=np.float32)
+        d["bitmap"] = mi.Bitmap(np.ascontiguousarray(texels[:, :, c : c + 1]))
+    else:
+        d["filename"] = path
+    return d
+
+
+def colour(value, base_dir):
+    """A colour parameter: an rgb triple or a bitmap entry."""
+    return bitmap(value, base_dir) if isinstance(value, dict) else rgb(value)
+
+
+def scalar(value, base_dir):
+    """A scalar parameter: a number or a bitmap entry."""
+    return bitmap(value, base_dir) if isinstance(value, dict) else float(value)
+
+
+def bsdf_dict(b, base_dir="."):
+    """Mitsuba BSDF dictionary of a relight `bsdf` entry (textures relative to `base_dir`)."""
     t = b["type"]
+    if t == "normalmap":
+        # Both switches default to on in Mitsuba 3.9 and have no counterpart in relight
+        # (measured): a shadowing factor on every evaluation, and a changed normal where the
+        # incident direction is below the perturbed one (relight: no contribution).
+        return {
+            "type": "normalmap",
+            "normalmap": bitmap(b["normalmap"], base_dir),
+            "bsdf": bsdf_dict(b["bsdf"], base_dir),
+            "use_shadowing_function": False,
+            "flip_invalid_normals": False,
+        }
     if t == "diffuse":
-        return {"type": "diffuse", "reflectance": rgb(b["reflectance"])}
+        return {"type": "diffuse", "reflectance": colour(b["reflectance"], base_dir)}
     if t == "roughconductor":
         return {
             "type": "roughconductor",
             "distribution": "ggx",
-            "alpha": float(b["alpha"]),
+            "alpha": scalar(b["alpha"], base_dir),
             "sample_visible": True,
             "material": "none",
-            "specular_reflectance": rgb(b["specular_reflectance"]),
+            "specular_reflectance": colour(b["specular_reflectance"], base_dir),
         }
     if t == "roughplastic":
         return {
@@ -80,8 +125,8 @@ def bsdf_dict(b):
             "nonlinear": False,
             "int_ior": float(b["int_ior"]),
             "ext_ior": float(b.get("ext_ior", 1.0)),
-            "diffuse_reflectance": rgb(b["diffuse_reflectance"]),
-            "specular_reflectance": rgb(b["specular_reflectance"]),
+            "diffuse_reflectance": colour(b["diffuse_reflectance"], base_dir),
+            "specular_reflectance": colour(b["specular_reflectance"], base_dir),
         }
     raise ValueError(f"unsupported bsdf type {t!r}")
 
@@ -142,7 +187,7 @@ def scene_dict(doc, base_dir, spp=None):
             "type": "ply",
             "filename": os.path.join(base_dir, s["ply"]),
             "face_normals": False,
-            "bsdf": bsdf_dict(s["bsdf"]),
+            "bsdf": bsdf_dict(s["bsdf"], base_dir),
         }
     return d
 

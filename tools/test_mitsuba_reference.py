@@ -67,6 +67,24 @@ class DictTests(unittest.TestCase):
         with self.assertRaises(ValueError):
             ref.bsdf_dict({"type": "phong"})
 
+    def test_textured_mapping(self):
+        b = ref.bsdf_dict(
+            {
+                "type": "normalmap",
+                "normalmap": {"bitmap": "n.exr"},
+                "bsdf": {"type": "diffuse", "reflectance": {"bitmap": "d.exr"}},
+            },
+            "/base",
+        )
+        # Mitsuba 3.9's defaults (a shadowing factor, flipped normals) are not relight's.
+        self.assertEqual((b["use_shadowing_function"], b["flip_invalid_normals"]), (False, False))
+        self.assertEqual(b["normalmap"]["filename"], os.path.join("/base", "n.exr"))
+        r = b["bsdf"]["reflectance"]
+        self.assertEqual(
+            (r["type"], r["raw"], r["filter_type"], r["wrap_mode"], r["filename"]),
+            ("bitmap", True, "bilinear", "repeat", os.path.join("/base", "d.exr")),
+        )
+
 
 @unittest.skipUnless(HAVE_MITSUBA, "mitsuba not importable")
 class MitsubaTests(unittest.TestCase):
@@ -84,6 +102,22 @@ class MitsubaTests(unittest.TestCase):
         p = m @ mi.ScalarPoint3f(0, 0, 1)
         self.assertAlmostEqual(p[0], 1.0, places=5)
         self.assertAlmostEqual(p[2], 0.0, places=5)
+
+    def test_bitmap_channel_is_a_one_channel_texture(self):
+        ref.pick_variant("scalar_rgb")
+        with tempfile.TemporaryDirectory() as tmp:
+            # 2 x 1 texels: red 0.2 then 0.6 (green and blue differ, so a mix would show).
+            mi.Bitmap(mi.TensorXf([[[0.2, 0.9, 0.0], [0.6, 0.1, 1.0]]])).write(os.path.join(tmp, "r.exr"))
+            c = ref.bsdf_dict(
+                {"type": "roughconductor", "alpha": {"bitmap": "r.exr", "channel": 0}, "specular_reflectance": [1] * 3},
+                tmp,
+            )
+            tex = mi.load_dict(c["alpha"])
+            si = mi.SurfaceInteraction3f()
+            for u, want in [(0.25, 0.2), (0.75, 0.6), (0.5, 0.4)]:
+                si.uv = mi.Point2f(u, 0.5)
+                self.assertAlmostEqual(tex.eval_1(si), want, places=6)
+            mi.load_dict(c)  # roughconductor accepts an alpha texture
 
     def test_furnace_render(self):
         a, L = 0.6, 2.0

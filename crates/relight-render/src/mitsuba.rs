@@ -3,21 +3,69 @@
 //!
 //! [`export_mitsuba`] writes into a folder:
 //! * `shape_<m>.ply`: the triangles of material `m` (binary little-endian PLY with vertex
-//!   normals, loaded with `face_normals = false` so Mitsuba interpolates them as we do);
+//!   normals and, when the mesh has them, texture coordinates `u v` in Mitsuba's convention
+//!   below; loaded with `face_normals = false` so Mitsuba interpolates the normals as we do);
+//! * `tex_<m>_<kind>.exr`: the maps of material `m` as Mitsuba reads them (below);
 //! * `env.exr`: the environment as a float latlong in Mitsuba's placement (the map's own
 //!   texels when it is a latlong, else resampled with [`EnvMap::to_latlong`]);
 //! * `scene.json`: camera (`origin`, `target`, `up`, `fov` horizontal in degrees, `width`,
 //!   `height`), `env` (`file`, `scale`, `rotate_y_deg`), `shapes` (`ply` and `bsdf` with
-//!   `type` = `diffuse` | `roughconductor` | `roughplastic` and the plugin's parameter names),
+//!   `type` = `diffuse` | `roughconductor` | `roughplastic` | `normalmap` and the plugin's
+//!   parameter names; a textured parameter is `{"bitmap": file}`, plus `"channel": 0` for a
+//!   scalar read from the first channel; a `normalmap` has `normalmap` and the nested `bsdf`),
 //!   `spp`, `max_depth`, `hide_emitters`.
 //!
 //! Materials map to Mitsuba plugins as documented on [`Material`]: `Lambert` -> `diffuse`,
 //! `GgxConductor` -> `roughconductor` (ggx, `material = "none"`), `GgxPlastic` ->
-//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong and Ward have no Mitsuba counterpart and are refused,
-//! as are materials with texture or normal maps (the export writes constant materials only).
+//! `roughplastic` (ggx, `ext_ior = 1`). Blinn-Phong and Ward have no Mitsuba counterpart and
+//! are refused.
+//!
+//! # Texture and normal maps
+//!
+//! Maps (`relight_scene::material::maps`) are exported where Mitsuba 3 expresses them
+//! exactly, and refused by material and map ([`MitsubaError::MapUnsupported`]) otherwise:
+//! * **Placement.** relight's `v` grows upwards (texel `(x, y)` from the top-left is centred
+//!   at `u = (x + 0.5) / w`, `v = 1 - (y + 0.5) / h`, `relight_scene::texture`); Mitsuba's
+//!   `bitmap` centres it at `((x + 0.5) / w, (y + 0.5) / h)` and its `ply` shape reads `u v`
+//!   as stored (both probed in Mitsuba 3.9: `Texture::eval` at texel centres and between them
+//!   across the edges, `SurfaceInteraction::uv` of a PLY triangle). The PLY therefore stores
+//!   `(u, 1 - v)` and the EXR the texels unchanged, row 0 at the top; Mitsuba's bilinear,
+//!   repeat-wrapped lookup then reads the texels relight's reads, with the same weights.
+//! * **Textures** are linear float EXR (the already-decoded texels), read with `raw = true`,
+//!   `filter_type = bilinear`, `wrap_mode = repeat`. A `diffuse` map on Lambert
+//!   (`reflectance`) or plastic (`diffuse_reflectance`) and a `specular` map on the conductor
+//!   or plastic (`specular_reflectance`) are written pre-multiplied by the constant
+//!   reflectance (the product of a constant and a bilinear lookup is the lookup of the
+//!   products). A conductor's `roughness` map is its `alpha` texture (the first channel);
+//!   refused when a texel is below `MIN_MAP_ALPHA` (relight raises the interpolated alpha,
+//!   Mitsuba would interpolate the texels as they are). A `roughness` map on the plastic is
+//!   refused: Mitsuba 3's `roughplastic` takes a scalar `alpha` only.
+//! * **Normal maps** become a `normalmap` BSDF around the material, loaded with
+//!   `use_shadowing_function = false` and `flip_invalid_normals = false`: Mitsuba 3.9 turns
+//!   both on by default (found in the plugin, behaviour probed with `BSDF::eval` and
+//!   `sample`): the first multiplies every evaluation by a shadowing factor of the outgoing
+//!   direction and of the angle between the interpolated and the perturbed normal (relight:
+//!   none; it made relight 1.1 % brighter on the test's ripple-mapped quad), the second
+//!   changes the normal where the incident direction is below the perturbed one (relight: no
+//!   contribution). With both off,
+//!   Mitsuba's `eval` is relight's cosine-weighted perturbed BSDF to float rounding. Mitsuba
+//!   perturbs the normal in the hit's shading frame, `s` = `dp/du` of the *triangle* made
+//!   orthogonal to the interpolated normal `n` and `t = n x s`; relight in `(T, sign N x T,
+//!   N)` with `T` the interpolated *per-vertex* tangent (Gram-Schmidt). Both BSDFs are
+//!   isotropic, so only the perturbed normal matters. With `v` flipped, `dp/du` is unchanged
+//!   and `t` is relight's bitangent when `sign = +1`; when every corner has `sign = -1`
+//!   (mirrored UVs, e.g. `shapes::ground_plane`) the map is written with its green channel
+//!   flipped (`g -> 1 - g`). The frames are the same, and the export exact, where every
+//!   corner's normal is the face normal and its tangent the triangle's `dp/du` direction
+//!   (planar quads with affine UVs); anything else is refused (mixed handedness, a curved or
+//!   smooth-shaded mesh, a UV shear across triangles). Curved meshes were measured before
+//!   that refusal: a UV sphere (24 x 48) with the test's ripple map, Lambert, differs from
+//!   Mitsuba by about 1.5 % relative RMS, within the noise at 512 spp (1.12 x the floor) but
+//!   not at 4096 (1.53 x; docs/RESULTS.md, section 11).
 
 use crate::image::Image;
 use relight_scene::error::SceneError;
+use relight_scene::material::maps::vertex_tangents;
 use relight_scene::material::{Material, MaterialError};
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Scene;
@@ -25,6 +73,8 @@ use relight_sphere::envmap::{EnvLayout, EnvMap};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+mod maps;
 
 /// Why exporting a scene to Mitsuba or running Mitsuba failed. Each message names the file,
 /// material or program; wrapped errors are part of the message (not also its `source`).
@@ -52,12 +102,16 @@ pub enum MitsubaError {
         /// What is wrong with it.
         error: MaterialError,
     },
-    /// A material in use has texture or normal maps: the export writes constant materials
-    /// only (refused rather than exported without its maps).
-    #[error("material {index} has texture or normal maps: the Mitsuba export writes constant materials only (compare a textured scene against relight's path tracer)")]
-    Textured {
+    /// A map of a material in use has no exact Mitsuba counterpart (module docs): refused
+    /// rather than exported as something else.
+    #[error("material {index}: its {map} map cannot be exported to Mitsuba: {reason}")]
+    MapUnsupported {
         /// Material index in the scene.
         index: usize,
+        /// The map's kind (`diffuse`, `specular`, `roughness`, `normal`).
+        map: &'static str,
+        /// Why Mitsuba cannot express it.
+        reason: String,
     },
     /// A material in use is a model Mitsuba 3 does not have (Blinn-Phong, Ward).
     #[error("material {index}: Mitsuba 3 has no {model} BSDF")]
@@ -149,6 +203,8 @@ pub fn export_mitsuba_lit(
         .validate()
         .map_err(|e| MitsubaError::Camera(e.to_string()))?;
     let mut shapes = Vec::new();
+    // Per-vertex tangents, computed once if a normal map asks for its handedness.
+    let mut tangents: Option<Option<Vec<glam::Vec4>>> = None;
     for (m, material) in scene.materials.iter().enumerate() {
         let sub = submesh(&scene.mesh, m as u32);
         if sub.indices.is_empty() {
@@ -157,11 +213,15 @@ pub fn export_mitsuba_lit(
         material
             .validate()
             .map_err(|error| MitsubaError::Material { index: m, error })?;
-        if scene.maps.of(m as u32).is_some() {
-            return Err(MitsubaError::Textured { index: m });
-        }
-        let bsdf =
+        let mut bsdf =
             bsdf_json(material).map_err(|model| MitsubaError::Unsupported { index: m, model })?;
+        if let Some(maps) = scene.maps.of(m as u32) {
+            let frames = || {
+                let t = tangents.get_or_insert_with(|| vertex_tangents(&scene.mesh));
+                maps::normal_map_frames(&scene.mesh, t.as_deref().unwrap_or(&[]), m as u32)
+            };
+            bsdf = maps::textured_bsdf(dir, m, material, bsdf, maps, frames)?;
+        }
         let name = format!("shape_{m}.ply");
         relight_scene::io::ply::write_ply(&dir.join(&name), &sub)?;
         shapes.push(json!({ "ply": name, "bsdf": bsdf }));
@@ -222,7 +282,8 @@ fn bsdf_json(m: &Material) -> Result<Value, &'static str> {
     })
 }
 
-/// The triangles of material `m` with their vertices, compacted, material id 0.
+/// The triangles of material `m` with their vertices, compacted, material id 0, texture
+/// coordinates in Mitsuba's convention (`v' = 1 - v`).
 fn submesh(mesh: &TriMesh, m: u32) -> TriMesh {
     let mut remap = vec![u32::MAX; mesh.positions.len()];
     let mut out = TriMesh::default();
@@ -238,7 +299,8 @@ fn submesh(mesh: &TriMesh, m: u32) -> TriMesh {
                 out.positions.push(mesh.positions[v]);
                 out.normals.push(mesh.normals[v]);
                 if let Some(u) = &mesh.uvs {
-                    uvs.push(u[v]);
+                    // Mitsuba's v grows downwards (module docs).
+                    uvs.push(glam::Vec2::new(u[v].x, 1.0 - u[v].y));
                 }
             }
             remap[v]
@@ -371,93 +433,4 @@ pub fn render_mitsuba(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use relight_scene::camera::Camera;
-    use relight_scene::scene::Environment;
-    use relight_scene::shapes::{ground_plane, uv_sphere};
-    use relight_scene::Vec3;
-
-    #[test]
-    fn export_writes_one_ply_per_used_material_and_a_complete_json() {
-        let mut mesh = uv_sphere(Vec3::Y, 1.0, 8, 16);
-        let ground = ground_plane(Vec3::ZERO, 6.0, 2);
-        mesh.append(&ground, 2);
-        let scene = Scene {
-            maps: Default::default(),
-            mesh,
-            materials: vec![
-                Material::Lambert {
-                    albedo: Vec3::splat(0.5),
-                },
-                Material::BlinnPhong {
-                    diffuse: Vec3::ZERO,
-                    specular: Vec3::ONE,
-                    exponent: 9.0,
-                }, // unused
-                Material::GgxPlastic {
-                    diffuse: Vec3::splat(0.3),
-                    specular: Vec3::ONE,
-                    alpha: 0.2,
-                    ior: 1.5,
-                },
-            ],
-            env: Environment {
-                rotate_y_deg: 30.0,
-                scale: 2.0,
-                ..Environment::new(EnvMap::constant(Vec3::ONE))
-            },
-            camera: Camera::look_at([0.0, 1.0, 5.0], [0.0, 1.0, 0.0], 40.0, 8, 6),
-        };
-        let dir =
-            std::env::temp_dir().join(format!("relight-mitsuba-export-{}", std::process::id()));
-        let json_path = export_mitsuba(&scene, &dir, 16, 3).unwrap();
-        let doc: Value =
-            serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
-        let shapes = doc["shapes"].as_array().unwrap();
-        assert_eq!(shapes.len(), 2);
-        assert_eq!(shapes[0]["bsdf"]["type"], "diffuse");
-        assert_eq!(shapes[1]["bsdf"]["type"], "roughplastic");
-        assert_eq!(shapes[1]["bsdf"]["ext_ior"], 1.0);
-        assert_eq!(doc["env"]["rotate_y_deg"], 30.0);
-        assert_eq!(doc["max_depth"], 3);
-        assert!(dir.join("shape_0.ply").is_file() && dir.join("shape_2.ply").is_file());
-        assert!(!dir.join("shape_1.ply").exists());
-        let (w, h, px) = relight_scene::io::image::read_exr(&dir.join("env.exr")).unwrap();
-        assert_eq!((w, h), (scene.env.map.width(), scene.env.map.height()));
-        assert!(px.iter().all(|p| *p == Vec3::ONE));
-        // A textured material is refused by name, not exported without its maps.
-        let mut textured = scene.clone();
-        let maps = relight_scene::material::maps::MaterialMaps {
-            diffuse: Some(relight_scene::texture::Texture::constant(Vec3::splat(0.5)).unwrap()),
-            ..Default::default()
-        };
-        textured.maps = relight_scene::material::maps::SceneMaps::new(
-            &textured.mesh,
-            vec![None, None, Some(std::sync::Arc::new(maps))],
-        )
-        .unwrap();
-        let e = export_mitsuba(&textured, &dir, 16, 3).unwrap_err();
-        assert!(matches!(e, MitsubaError::Textured { index: 2 }), "{e:?}");
-        assert!(e.to_string().contains("texture or normal maps"), "{e}");
-        // Blinn-Phong in use is refused.
-        let mut bp = scene.clone();
-        bp.mesh.material_ids.iter_mut().for_each(|m| *m = 1);
-        let e = export_mitsuba(&bp, &dir, 16, 3).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                MitsubaError::Unsupported {
-                    index: 1,
-                    model: "Blinn-Phong"
-                }
-            ),
-            "{e:?}"
-        );
-        assert_eq!(
-            e.to_string(),
-            "material 1: Mitsuba 3 has no Blinn-Phong BSDF"
-        );
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-}
+mod tests;

@@ -21,10 +21,9 @@
 //! skip when `../shared` is absent. `RELIGHT_RESULTS_TABLE=path` appends each comparison as a
 //! markdown table row (used to write docs/RESULTS-pathtracer.md).
 
-use relight_render::mitsuba::{export_mitsuba, mitsuba_python, render_mitsuba};
 use relight_render::pathtrace::{render_with_variance, PtSettings};
 use relight_render::Image;
-use relight_scene::accel::{build_default, Ray, RayCaster};
+use relight_scene::accel::{build_default, Ray};
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
@@ -34,6 +33,9 @@ use relight_scene::Vec3;
 use relight_sphere::envmap::{EnvLayout, EnvMap};
 use std::io::Write;
 use std::path::PathBuf;
+
+mod common;
+use common::{agreement, mitsuba_render, object_mask, MitsubaResult};
 
 /// Allowed ratio of relRMSE to the combined noise floor (see the module docs).
 const K: f64 = 1.5;
@@ -85,84 +87,6 @@ fn sphere_on_ground(
         env,
         camera: camera([0.0, 2.6, 4.6], [0.0, 0.7, 0.0], 50.0, size),
     }
-}
-
-/// Pixels whose centre ray hits geometry.
-fn object_mask(scene: &Scene, caster: &dyn RayCaster) -> Vec<bool> {
-    let f = scene.camera.frame();
-    let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
-    (0..w * h)
-        .map(|i| {
-            let d = f.dir_at((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            caster
-                .intersect(&Ray::new(f.origin, d, 0.0, f32::INFINITY))
-                .is_some()
-        })
-        .collect()
-}
-
-/// relRMSE of `a` against `b`, the noise floor from the two variance images, and the mean
-/// difference in units of its standard error, over masked pixels and channels.
-struct Agreement {
-    rel_rmse: f64,
-    floor: f64,
-    bias_sigmas: f64,
-}
-
-fn agreement(a: &Image, var_a: &Image, b: &Image, var_b: &Image, mask: &[bool]) -> Agreement {
-    let (mut d2, mut b2, mut v) = (0.0f64, 0.0f64, 0.0f64);
-    // Mean difference: summed per pixel over channels; channels of a pixel share their paths,
-    // so the pixel's variance is bounded by (Σ_c sd_c)^2 (Cauchy-Schwarz), not Σ_c var_c.
-    let (mut d, mut vd) = (0.0f64, 0.0f64);
-    for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
-        let (mut sd_a, mut sd_b) = (0.0f64, 0.0f64);
-        for c in 0..3 {
-            let (x, y) = (a.pixels[i][c] as f64, b.pixels[i][c] as f64);
-            d2 += (x - y) * (x - y);
-            b2 += y * y;
-            v += var_a.pixels[i][c] as f64 + var_b.pixels[i][c] as f64;
-            d += x - y;
-            sd_a += (var_a.pixels[i][c] as f64).sqrt();
-            sd_b += (var_b.pixels[i][c] as f64).sqrt();
-        }
-        vd += sd_a * sd_a + sd_b * sd_b;
-    }
-    Agreement {
-        rel_rmse: (d2 / b2).sqrt(),
-        floor: (v / b2).sqrt(),
-        bias_sigmas: d.abs() / vd.sqrt().max(1e-30),
-    }
-}
-
-/// Mitsuba's two renders of an exported scene: their mean and its per-pixel variance.
-struct MitsubaResult {
-    mean: Image,
-    var: Image,
-    report: String,
-}
-
-fn mitsuba_render(name: &str, scene: &Scene, spp: u32, max_depth: i32) -> Option<MitsubaResult> {
-    let python = match mitsuba_python() {
-        Ok(p) => p,
-        Err(e) => {
-            relight_testdata::skip(&format!("Mitsuba comparison {name}: {e}"));
-            return None;
-        }
-    };
-    let dir = std::env::temp_dir().join(format!("relight-mitsuba-{name}-{}", std::process::id()));
-    let json = export_mitsuba(scene, &dir, spp, max_depth).expect("export");
-    let (imgs, report) = render_mitsuba(&python, &json, &dir.join("mitsuba"), &[1, 2], None)
-        .expect("mitsuba render");
-    let (a, b) = (&imgs[0], &imgs[1]);
-    let mut mean = Image::new(a.width, a.height);
-    let mut var = Image::new(a.width, a.height);
-    for i in 0..a.pixels.len() {
-        mean.pixels[i] = (a.pixels[i] + b.pixels[i]) * 0.5;
-        let diff = a.pixels[i] - b.pixels[i];
-        var.pixels[i] = diff * diff * 0.25;
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    Some(MitsubaResult { mean, var, report })
 }
 
 /// Append a result row to `$RELIGHT_RESULTS_TABLE` if set.
