@@ -272,13 +272,13 @@ fn cuts_renders_on_the_gpu_and_what_it_does_not_render_is_refused_by_name() {
     assert!(read(&out).iter().any(|p| p.max_element() > 0.0));
     std::fs::remove_file(&out).unwrap();
     // A material the GPU does not shade yet, by name.
-    let plastic = r#"{"type": "ggx_plastic", "diffuse": [0.5, 0.5, 0.5], "specular": [1, 1, 1], "alpha": 0.2, "ior": 1.5}"#;
+    let phong = r#"{"type": "blinn_phong", "diffuse": [0.5, 0.5, 0.5], "specular": [0.3, 0.3, 0.3], "exponent": 20}"#;
     let o = relight(&[
         "render",
         s(&cuts),
         "--gpu",
         "--material",
-        plastic,
+        phong,
         "-o",
         s(&out),
     ]);

@@ -7,10 +7,12 @@
 //! of sec. 3.2 and the sum of Eq. 5 (sec. 4.2; `cuts.wgsl`), then the resolve pass.
 //!
 //! Refused (a [`GpuError::Unsupported`] naming what): bakes of surface samples (local
-//! lights), texture and normal maps, and materials other than Lambert and the GGX conductor.
+//! lights), texture and normal maps, and materials other than Lambert, the GGX conductor and
+//! the GGX plastic.
 
 use crate::layout::{
-    GpuCutsMaterial, GpuCutsParams, GpuLightNode, CUTS_GGX_CONDUCTOR, CUTS_LAMBERT,
+    GpuCutsMaterial, GpuCutsParams, GpuLightNode, CUTS_GGX_CONDUCTOR, CUTS_GGX_PLASTIC,
+    CUTS_LAMBERT,
 };
 use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
@@ -20,6 +22,7 @@ use relight_bake::cuts::visibility::CutFunction;
 use relight_method::cuts::{CutsBaked, CutsFrameSettings};
 use relight_method::{FrameOptions, MethodKind};
 use relight_scene::camera::Camera;
+use relight_scene::material::microfacet::PlasticTables;
 use relight_scene::material::Material;
 use relight_scene::scene::Environment;
 use std::time::Instant;
@@ -33,40 +36,72 @@ pub(crate) struct CutsGpuFrame<'a> {
     raster: Raster,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
-    tri_material: wgpu::Buffer,
+    tables: wgpu::Buffer,
     materials: wgpu::Buffer,
     cuts: wgpu::Buffer,
-    /// `keys_base`, `values_base` of [`GpuCutsParams`].
-    bases: (u32, u32),
+    /// `keys_base`, `values_base`, `materials_base` of [`GpuCutsParams`].
+    bases: [u32; 3],
     /// The prepared light cut and the bind group reading it.
     prepared: Option<(LightCut, wgpu::BindGroup)>,
 }
 
-/// The GPU form of `m`, or why it is refused.
-fn gpu_material(m: &Material, spread: bool) -> Result<GpuCutsMaterial, GpuError> {
-    let (kind, color, alpha) = match *m {
-        Material::Lambert { albedo } => (CUTS_LAMBERT, albedo, 0.0),
-        Material::GgxConductor { specular, alpha } => (CUTS_GGX_CONDUCTOR, specular, alpha),
+/// The GPU form of `m` (a plastic's transmittance table appended to `tables`), or why it is
+/// refused.
+fn gpu_material(
+    m: &Material,
+    spread: bool,
+    tables: &mut Vec<f32>,
+) -> Result<GpuCutsMaterial, GpuError> {
+    let mut g = GpuCutsMaterial {
+        color: [0.0; 4],
+        diffuse: [0.0; 4],
+        kind: CUTS_LAMBERT,
+        alpha: 0.0,
+        spread: (spread && !m.is_diffuse_only()) as u32,
+        ior: 1.0,
+        table: 0,
+        internal_reflectance: 0.0,
+        pad: [0; 2],
+    };
+    match *m {
+        Material::Lambert { albedo } => g.color = v4(albedo, 0.0),
+        Material::GgxConductor { specular, alpha } => {
+            (g.kind, g.color, g.alpha) = (CUTS_GGX_CONDUCTOR, v4(specular, 0.0), alpha);
+        }
+        Material::GgxPlastic {
+            diffuse,
+            specular,
+            alpha,
+            ior,
+        } => {
+            // The CPU's own tables (MaterialEval fetches the same cached ones).
+            let t = PlasticTables::get(alpha, ior);
+            g.kind = CUTS_GGX_PLASTIC;
+            (g.color, g.diffuse) = (v4(specular, 0.0), v4(diffuse, 0.0));
+            (g.alpha, g.ior) = (alpha, ior);
+            g.table = tables.len() as u32;
+            g.internal_reflectance = t.internal_reflectance;
+            tables.extend_from_slice(&t.external_transmittance);
+        }
         ref other => {
             return Err(GpuError::Unsupported(format!(
-                "--method cuts --gpu shades Lambert and GGX conductor materials; {other:?} is not supported on the GPU yet (render it without --gpu)"
+                "--method cuts --gpu shades Lambert, GGX conductor and GGX plastic materials; {other:?} is not supported on the GPU yet (render it without --gpu)"
             )))
         }
-    };
-    Ok(GpuCutsMaterial {
-        color: v4(color, 0.0),
-        kind,
-        alpha,
-        spread: (spread && !m.is_diffuse_only()) as u32,
-        pad: 0,
-    })
+    }
+    Ok(g)
 }
 
-/// The vertex cuts as one `u32` array (offsets, key pairs, packed means) and the two bases.
-fn pack_cuts(baked: &CutsBaked, max_bytes: u64) -> Result<(Vec<u32>, u32, u32), GpuError> {
+/// The vertex cuts as one `u32` array (offsets, key pairs, packed means, then the triangles'
+/// material indices) and the three bases.
+fn pack_cuts(baked: &CutsBaked, max_bytes: u64) -> Result<(Vec<u32>, [u32; 3]), GpuError> {
     let c = &baked.bake.cuts;
+    let mesh = &baked.scene.mesh;
     let entries = c.index.len();
-    let words = c.offsets.len() as u64 + 2 * entries as u64 + entries.div_ceil(2) as u64;
+    let words = c.offsets.len() as u64
+        + 2 * entries as u64
+        + entries.div_ceil(2) as u64
+        + mesh.indices.len() as u64;
     if words * 4 > max_bytes || words > u32::MAX as u64 {
         return Err(GpuError::Unsupported(format!(
             "{entries} vertex-cut entries need {} bytes in one storage buffer, beyond the device's {max_bytes}",
@@ -85,7 +120,13 @@ fn pack_cuts(baked: &CutsBaked, max_bytes: u64) -> Result<(Vec<u32>, u32, u32), 
             .chunks(2)
             .map(|p| p[0] as u32 | (p.get(1).copied().unwrap_or(0) as u32) << 16),
     );
-    Ok((out, keys_base, values_base))
+    let materials_base = out.len() as u32;
+    if mesh.material_ids.len() == mesh.indices.len() {
+        out.extend_from_slice(&mesh.material_ids);
+    } else {
+        out.extend(std::iter::repeat_n(0, mesh.indices.len()));
+    }
+    Ok((out, [keys_base, values_base, materials_base]))
 }
 
 impl<'a> CutsGpuFrame<'a> {
@@ -117,29 +158,27 @@ impl<'a> CutsGpuFrame<'a> {
                 scene.materials.clone()
             }
         };
+        let mut table_data = Vec::new();
         let gm = materials
             .iter()
-            .map(|m| gpu_material(m, s.cluster_spread))
+            .map(|m| gpu_material(m, s.cluster_spread, &mut table_data))
             .collect::<Result<Vec<_>, _>>()?;
+        if table_data.is_empty() {
+            table_data.push(0.0); // no plastic: a binding still needs a buffer
+        }
         let mut up = 0;
         let mesh = MeshBuffers::new(gpu, &scene.mesh, &mut up)?;
         let raster = Raster::new(gpu, &mut up)?;
-        let (packed, keys_base, values_base) =
-            pack_cuts(baked, gpu.limits().max_storage_buffer_binding_size)?;
+        let (packed, bases) = pack_cuts(baked, gpu.limits().max_storage_buffer_binding_size)?;
         let cuts = gpu.buffer(
             "vertex cuts",
             bytemuck::cast_slice(&packed),
             STORAGE,
             &mut up,
         )?;
-        let ids: Vec<u32> = if scene.mesh.material_ids.is_empty() {
-            vec![0; scene.mesh.indices.len().max(1)]
-        } else {
-            scene.mesh.material_ids.clone()
-        };
-        let tri_material = gpu.buffer(
-            "triangle materials",
-            bytemuck::cast_slice(&ids),
+        let tables = gpu.buffer(
+            "plastic tables",
+            bytemuck::cast_slice(&table_data),
             STORAGE,
             &mut up,
         )?;
@@ -185,10 +224,10 @@ impl<'a> CutsGpuFrame<'a> {
             raster,
             layout,
             pipeline,
-            tri_material,
+            tables,
             materials,
             cuts,
-            bases: (keys_base, values_base),
+            bases,
             prepared: None,
         })
     }
@@ -243,8 +282,10 @@ impl GpuFrame for CutsGpuFrame<'_> {
         let params = GpuCutsParams {
             light_len: light.len() as u32,
             cosine_in_cuts: (self.baked.settings.function == CutFunction::VisibilityCosine) as u32,
-            keys_base: self.bases.0,
-            values_base: self.bases.1,
+            keys_base: self.bases[0],
+            values_base: self.bases[1],
+            materials_base: self.bases[2],
+            pad: [0; 3],
         };
         let gpu = self.gpu;
         let up = &mut stats.bytes_uploaded;
@@ -261,7 +302,7 @@ impl GpuFrame for CutsGpuFrame<'_> {
                 m.positions.as_entire_binding(),
                 m.normals.as_entire_binding(),
                 m.indices.as_entire_binding(),
-                self.tri_material.as_entire_binding(),
+                self.tables.as_entire_binding(),
                 self.materials.as_entire_binding(),
                 self.cuts.as_entire_binding(),
                 nb.as_entire_binding(),

@@ -220,8 +220,12 @@ pub struct GpuCutsParams {
     pub keys_base: u32,
     /// Offset (in `u32` words) of the packed quantised means (two `u16` per word).
     pub values_base: u32,
+    /// Offset (in `u32` words) of the triangles' material indices.
+    pub materials_base: u32,
+    /// Padding.
+    pub pad: [u32; 3],
 }
-const _: () = assert!(size_of::<GpuCutsParams>() == 16);
+const _: () = assert!(size_of::<GpuCutsParams>() == 32);
 
 /// One node of the illumination cut. WGSL twin: `LightNode` in `shaders/cuts.wgsl`.
 #[repr(C)]
@@ -238,28 +242,38 @@ pub struct GpuLightNode {
 }
 const _: () = assert!(size_of::<GpuLightNode>() == 32);
 
-/// Kinds of [`GpuCutsMaterial`].
+/// Kinds of [`GpuCutsMaterial`]: Lambert.
 pub const CUTS_LAMBERT: u32 = 0;
 /// The GGX conductor.
 pub const CUTS_GGX_CONDUCTOR: u32 = 1;
+/// The GGX plastic.
+pub const CUTS_GGX_PLASTIC: u32 = 2;
 
 /// A material of the `cuts` frame. WGSL twin: `CutsMaterial` in `shaders/cuts.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuCutsMaterial {
-    /// Lambert's albedo or the conductor's specular reflectance (w unused).
+    /// Lambert's albedo, the conductor's or the plastic's specular reflectance (w unused).
     pub color: [f32; 4],
-    /// [`CUTS_LAMBERT`] or [`CUTS_GGX_CONDUCTOR`].
+    /// The plastic's diffuse reflectance (w unused).
+    pub diffuse: [f32; 4],
+    /// [`CUTS_LAMBERT`], [`CUTS_GGX_CONDUCTOR`] or [`CUTS_GGX_PLASTIC`].
     pub kind: u32,
     /// GGX roughness.
     pub alpha: f32,
     /// 1: averaged over each merged cluster's spread (the CPU's `spreads`: spread on and
     /// the material not purely diffuse).
     pub spread: u32,
+    /// The plastic's index of refraction.
+    pub ior: f32,
+    /// The plastic's first entry in the transmittance tables (`TABLE_RES` entries).
+    pub table: u32,
+    /// The plastic's internal reflectance `Fdr` (`PlasticTables::internal_reflectance`).
+    pub internal_reflectance: f32,
     /// Padding.
-    pub pad: u32,
+    pub pad: [u32; 2],
 }
-const _: () = assert!(size_of::<GpuCutsMaterial>() == 32);
+const _: () = assert!(size_of::<GpuCutsMaterial>() == 64);
 
 /// Each Rust struct against the WGSL that declares its twin, parsed by naga (wgpu's own
 /// front-end) and laid out as the GPU sees it.
@@ -313,7 +327,7 @@ mod tests {
                 &cuts,
                 "CutsParams",
                 size_of::<GpuCutsParams>(),
-                o(&[0, 4, 8, 12]),
+                o(&[0, 4, 8, 12, 16, 20, 24, 28]),
             ),
             (
                 &cuts,
@@ -332,9 +346,13 @@ mod tests {
                 size_of::<GpuCutsMaterial>(),
                 o(&[
                     offset_of!(GpuCutsMaterial, color),
+                    offset_of!(GpuCutsMaterial, diffuse),
                     offset_of!(GpuCutsMaterial, kind),
                     offset_of!(GpuCutsMaterial, alpha),
                     offset_of!(GpuCutsMaterial, spread),
+                    offset_of!(GpuCutsMaterial, ior),
+                    offset_of!(GpuCutsMaterial, table),
+                    offset_of!(GpuCutsMaterial, internal_reflectance),
                     offset_of!(GpuCutsMaterial, pad),
                 ]),
             ),

@@ -132,7 +132,8 @@ pub trait GpuFrame {
 /// As `Baked::frame_of` (a bake of another kind, a part of a sharded bake, settings out of
 /// range), and [`GpuError::Unsupported`] for a method without a GPU shader yet (`vmf`) and
 /// for what the `cuts` frame does not render on the GPU yet (bakes of surface samples,
-/// texture and normal maps, materials other than Lambert and the GGX conductor).
+/// texture and normal maps, materials other than Lambert, the GGX conductor and the GGX
+/// plastic).
 pub fn frame_of<'a>(
     gpu: &'a Gpu,
     baked: &'a Baked,

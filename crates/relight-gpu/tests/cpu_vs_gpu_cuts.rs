@@ -1,7 +1,8 @@
 //! The GPU `cuts` frame against the CPU's per-sample reference
 //! (`CutsShader::render_per_fragment`: the merge of sec. 3.2 at every sample, the same light
-//! cut, the same materials, the cluster spread on as the CPU frame's default), pixel by
-//! pixel, with negative controls that must fail the same comparison. Skips with a printed
+//! cut, the same materials: Lambert, GGX conductor, GGX plastic; the cluster spread on as
+//! the CPU frame's default), pixel by pixel, with negative controls that must fail the same
+//! comparison. Skips with a printed
 //! reason where no Vulkan adapter exists (fails under `RELIGHT_REQUIRE_REFERENCE=1`).
 //!
 //! # Tolerances, and where the differences come from
@@ -75,6 +76,7 @@ fn desc(material: &str) -> SceneDesc {
 
 const LAMBERT: &str = r#"{"type": "lambert", "albedo": [0.8, 0.3, 0.2]}"#;
 const CONDUCTOR: &str = r#"{"type": "ggx_conductor", "specular": [0.9, 0.7, 0.4], "alpha": 0.2}"#;
+const PLASTIC: &str = r#"{"type": "ggx_plastic", "diffuse": [0.2, 0.4, 0.7], "specular": [1, 1, 1], "alpha": 0.15, "ior": 1.5}"#;
 
 /// A cuts bake of 2048 environment lights (binary visibility, the default).
 fn bake(material: &str) -> (Baked, Scene) {
@@ -236,6 +238,25 @@ fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
     assert!(compare(&c, &g).is_err());
 }
 
+#[test]
+fn cuts_frame_ggx_plastic_matches_the_per_sample_merge() {
+    let Some(gpu) = gpu() else { return };
+    let (b, scene) = bake(PLASTIC);
+    let s = CutsFrameSettings::default();
+    let c = cpu(&b, &s, &scene);
+    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
+    compare(&c, &g).unwrap();
+    // Negative controls: another rotation's light cut; the spread off.
+    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
+    assert!(compare(&c, &g).is_err());
+    let off = CutsFrameSettings {
+        cluster_spread: false,
+        ..s
+    };
+    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
+    assert!(compare(&c, &g).is_err());
+}
+
 /// Cuts holding the cosine: the BRDF without its cosine, directions below the horizon lifted
 /// onto it (`cluster_brdf`), on the GPU as on the CPU.
 #[test]
@@ -259,22 +280,21 @@ fn cuts_frame_over_visibility_cosine_cuts_matches() {
 fn unsupported_materials_are_refused_by_name() {
     let Some(gpu) = gpu() else { return };
     let (b, _) = bake(LAMBERT);
-    let plastic = Material::GgxPlastic {
+    let phong = Material::BlinnPhong {
         diffuse: Vec3::splat(0.5),
-        specular: Vec3::ONE,
-        alpha: 0.2,
-        ior: 1.5,
+        specular: Vec3::splat(0.3),
+        exponent: 20.0,
     };
     let s = CutsFrameSettings {
-        material: Some(plastic.into()),
+        material: Some(phong.into()),
         ..Default::default()
     };
     let e = frame_of(&gpu, &b, &FrameSettings::Cuts(s))
         .err()
-        .expect("a plastic is refused")
+        .expect("Blinn-Phong is refused")
         .to_string();
     assert!(
-        e.contains("GgxPlastic") && e.contains("not supported on the GPU"),
+        e.contains("BlinnPhong") && e.contains("not supported on the GPU"),
         "{e}"
     );
 }

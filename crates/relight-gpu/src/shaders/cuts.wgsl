@@ -6,19 +6,22 @@
 // over the merged clusters C'_k:
 //   B = sum_k |C'_k| <L>_k (sum_j b_j <v_j>_k) f(w_k),
 // with b_j the perspective-correct barycentric weights, <v_j>_k the corner's quantised mean
-// (u16 / 65535) and f the material's BRDF (Material::eval) at the cluster's luminance-weighted
+// (u16 / 65535) and f the material's BRDF (Material::eval: Lambert, the GGX conductor and
+// the GGX plastic) at the cluster's luminance-weighted
 // direction w_k, or averaged over its spread by the five-point rule (LightCut::spread_average)
 // for materials that are not purely diffuse when the spread is on.
 //
 // Cuts buffer (u32 words): vertex_count + 1 offsets, then (index, leftleaf) pairs from
 // params.keys_base, then the quantised means, two u16 per word (low half first), from
-// params.values_base.
+// params.values_base, then each triangle's material index from params.materials_base.
 
 const PI: f32 = 3.14159265358979323846;
 // relight_scene::material::microfacet::MIN_ALPHA.
 const MIN_ALPHA: f32 = 1e-4;
 // relight_render::shade_cuts::HORIZON (visibility-cosine cuts lift directions below it).
 const HORIZON: f32 = 1e-3;
+// relight_scene::material::microfacet::TABLE_RES.
+const TABLE_RES: u32 = 64u;
 
 // Twin of relight_gpu::layout::GpuCutsParams.
 struct CutsParams {
@@ -26,6 +29,10 @@ struct CutsParams {
     cosine_in_cuts: u32,
     keys_base: u32,
     values_base: u32,
+    materials_base: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // Twin of relight_gpu::layout::GpuLightNode.
@@ -39,17 +46,23 @@ struct LightNode {
 // Twin of relight_gpu::layout::GpuCutsMaterial.
 struct CutsMaterial {
     color: vec4<f32>,
+    diffuse: vec4<f32>,
     kind: u32,
     alpha: f32,
     spread: u32,
-    pad: u32,
+    ior: f32,
+    table: u32,
+    internal_reflectance: f32,
+    pad: vec2<u32>,
 }
 
 @group(0) @binding(0) var<uniform> cam: Camera;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> indices: array<u32>;
-@group(0) @binding(4) var<storage, read> tri_material: array<u32>;
+// The GGX plastics' transmittance tables (PlasticTables::external_transmittance, TABLE_RES
+// entries each, from CutsMaterial::table).
+@group(0) @binding(4) var<storage, read> tables: array<f32>;
 @group(0) @binding(5) var<storage, read> materials: array<CutsMaterial>;
 @group(0) @binding(6) var<storage, read> cuts: array<u32>;
 @group(0) @binding(7) var<storage, read> light: array<LightNode>;
@@ -130,6 +143,32 @@ fn smith_g1(v: vec3<f32>, m: vec3<f32>, alpha: f32) -> f32 {
     return 2.0 / (1.0 + sqrt(1.0 + tan2));
 }
 
+// microfacet::fresnel_dielectric.
+fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+    var eta = eta_in;
+    var cos_i = cos_in;
+    if (cos_i < 0.0) {
+        eta = 1.0 / eta;
+        cos_i = -cos_i;
+    }
+    let sin2_t = max(1.0 - cos_i * cos_i, 0.0) / (eta * eta);
+    if (sin2_t >= 1.0) {
+        return 1.0;
+    }
+    let cos_t = sqrt(1.0 - sin2_t);
+    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// PlasticTables::transmittance (microfacet::lerp_table) of the table at `base`.
+fn transmittance(base: u32, x: f32) -> f32 {
+    let f = clamp(x, 0.0, 1.0) * f32(TABLE_RES - 1u);
+    let i = min(u32(f), TABLE_RES - 2u);
+    let w = f - f32(i);
+    return tables[base + i] * (1.0 - w) + tables[base + i + 1u] * w;
+}
+
 // Material::eval (the BSDF times max(0, cos theta_o)) in the shading frame.
 fn eval_material(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
     if (wi.z <= 0.0 || wo.z <= 0.0) {
@@ -138,9 +177,20 @@ fn eval_material(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
     if (m.kind == 0u) {
         return m.color.xyz * (wo.z / PI);
     }
+    // ggx_reflection: the half vector and D G / (4 cos theta_i).
     let h = normalize(wi + wo);
     let g = smith_g1(wi, h, m.alpha) * smith_g1(wo, h, m.alpha);
-    return m.color.xyz * (ggx_d(h, m.alpha) * g / (4.0 * wi.z));
+    let dg = ggx_d(h, m.alpha) * g / (4.0 * wi.z);
+    if (m.kind == 1u) {
+        return m.color.xyz * dg;
+    }
+    // The plastic: the coating's specular term and the diffuse base seen through it.
+    let spec = m.color.xyz * (fresnel_dielectric(dot(wi, h), m.ior) * dg);
+    let ti = transmittance(m.table, wi.z);
+    let to = transmittance(m.table, wo.z);
+    let diff = m.diffuse.xyz / (1.0 - m.internal_reflectance)
+        * ((1.0 / PI) / (m.ior * m.ior) * wo.z * ti * to);
+    return spec + diff;
 }
 
 // shade_cuts::cluster_brdf: the BRDF towards world direction w.
@@ -205,7 +255,7 @@ fn fs(f: VOut) -> @location(0) vec4<f32> {
     if (sl > 1e-30) {
         n = sn / sl;
     }
-    let m = materials[tri_material[f.tri]];
+    let m = materials[cuts[params.materials_base + f.tri]];
     let frame = frame_from_normal(n);
     let wi = to_local(frame, normalize(cam.origin.xyz - p));
     if (wi.z <= 0.0) {
