@@ -65,7 +65,7 @@ pub struct Args {
     /// vMF options.
     #[command(flatten)]
     pub vmf: VmfFrameSettings,
-    /// Render the frame on the GPU (wgpu, Vulkan; sh, hybrid and sg).
+    /// Render the frame on the GPU (wgpu, Vulkan; sh, hybrid, sg and cuts).
     /// Needs a build with `--features gpu` and a Vulkan driver (Debian: mesa-vulkan-drivers).
     #[arg(long)]
     pub gpu: bool,

@@ -242,7 +242,7 @@ fn wgpu_adapter_name_picks_the_adapter_or_lists_them() {
 }
 
 #[test]
-fn a_method_without_a_gpu_renderer_is_refused_by_name() {
+fn cuts_renders_on_the_gpu_and_what_it_does_not_render_is_refused_by_name() {
     if !cfg!(feature = "gpu") {
         return;
     }
@@ -261,13 +261,28 @@ fn a_method_without_a_gpu_renderer_is_refused_by_name() {
         "256",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let out = dir.join("x.png");
+    let out = dir.join("x.exr");
     let o = relight(&["render", s(&cuts), "--gpu", "-o", s(&out)]);
     if stderr(&o).contains("no Vulkan GPU adapter") {
         relight_testdata::skip(&format!("no Vulkan adapter: {}", stderr(&o)));
         return;
     }
-    assert_clean_failure(&o, "--method cuts has no GPU renderer yet", &out);
+    // The cuts frame renders (pixel-by-pixel checks: relight-gpu's tests/cpu_vs_gpu_cuts.rs).
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(read(&out).iter().any(|p| p.max_element() > 0.0));
+    std::fs::remove_file(&out).unwrap();
+    // A material the GPU does not shade yet, by name.
+    let phong = r#"{"type": "blinn_phong", "diffuse": [0.5, 0.5, 0.5], "specular": [0.3, 0.3, 0.3], "exponent": 20}"#;
+    let o = relight(&[
+        "render",
+        s(&cuts),
+        "--gpu",
+        "--material",
+        phong,
+        "-o",
+        s(&out),
+    ]);
+    assert_clean_failure(&o, "is not supported on the GPU yet", &out);
     // And a bundle of the wrong kind for the method, in the CPU frame's words.
     let o = relight(&["render", s(&b), "--gpu", "--method", "sg", "-o", s(&out)]);
     assert_clean_failure(&o, "holds a `sh` bake", &out);

@@ -37,7 +37,7 @@
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial
 //!     refinement against a fixed level-1 bake of the same mesh, then its 512 x 512 CPU frame
 //!     against `sg`'s and SH's frames of the same mesh and camera (issue 12 item 8).
-//! 14. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 against the CPU
+//! 14. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 (cuts: 320 x 180) against the CPU
 //!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of

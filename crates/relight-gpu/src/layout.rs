@@ -206,6 +206,75 @@ pub struct GpuSgParams {
 }
 const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS);
 
+/// The `cuts` shading pass's parameters. WGSL twin: `CutsParams` in `shaders/cuts.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuCutsParams {
+    /// Nodes of the illumination cut.
+    pub light_len: u32,
+    /// 0: the cuts hold binary visibility (`CutFunction::Visibility`), 1: visibility times
+    /// the cosine (`CutFunction::VisibilityCosine`).
+    pub cosine_in_cuts: u32,
+    /// Offset (in `u32` words) of the vertex cuts' `(index, leftleaf)` pairs in the cuts
+    /// buffer (the `vertex_count + 1` offsets come first).
+    pub keys_base: u32,
+    /// Offset (in `u32` words) of the packed quantised means (two `u16` per word).
+    pub values_base: u32,
+    /// Offset (in `u32` words) of the triangles' material indices.
+    pub materials_base: u32,
+    /// Padding.
+    pub pad: [u32; 3],
+}
+const _: () = assert!(size_of::<GpuCutsParams>() == 32);
+
+/// One node of the illumination cut. WGSL twin: `LightNode` in `shaders/cuts.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuLightNode {
+    /// Cluster mean `<L O>` (RGB; w unused).
+    pub value: [f32; 4],
+    /// Post-order index.
+    pub index: u32,
+    /// Leftmost leaf.
+    pub leftleaf: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+const _: () = assert!(size_of::<GpuLightNode>() == 32);
+
+/// Kinds of [`GpuCutsMaterial`]: Lambert.
+pub const CUTS_LAMBERT: u32 = 0;
+/// The GGX conductor.
+pub const CUTS_GGX_CONDUCTOR: u32 = 1;
+/// The GGX plastic.
+pub const CUTS_GGX_PLASTIC: u32 = 2;
+
+/// A material of the `cuts` frame. WGSL twin: `CutsMaterial` in `shaders/cuts.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuCutsMaterial {
+    /// Lambert's albedo, the conductor's or the plastic's specular reflectance (w unused).
+    pub color: [f32; 4],
+    /// The plastic's diffuse reflectance (w unused).
+    pub diffuse: [f32; 4],
+    /// [`CUTS_LAMBERT`], [`CUTS_GGX_CONDUCTOR`] or [`CUTS_GGX_PLASTIC`].
+    pub kind: u32,
+    /// GGX roughness.
+    pub alpha: f32,
+    /// 1: averaged over each merged cluster's spread (the CPU's `spreads`: spread on and
+    /// the material not purely diffuse).
+    pub spread: u32,
+    /// The plastic's index of refraction.
+    pub ior: f32,
+    /// The plastic's first entry in the transmittance tables (`TABLE_RES` entries).
+    pub table: u32,
+    /// The plastic's internal reflectance `Fdr` (`PlasticTables::internal_reflectance`).
+    pub internal_reflectance: f32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+const _: () = assert!(size_of::<GpuCutsMaterial>() == 64);
+
 /// Each Rust struct against the WGSL that declares its twin, parsed by naga (wgpu's own
 /// front-end) and laid out as the GPU sees it.
 #[cfg(test)]
@@ -252,7 +321,41 @@ mod tests {
         type L = GpuLight;
         type S = GpuSgParams;
         let pyramid = [LIGHT, include_str!("shaders/shadow_pyramid.wgsl")].concat();
-        let cases: [(&str, &str, usize, Vec<u32>); 10] = [
+        let cuts = [COMMON, include_str!("shaders/cuts.wgsl")].concat();
+        let cases: [(&str, &str, usize, Vec<u32>); 13] = [
+            (
+                &cuts,
+                "CutsParams",
+                size_of::<GpuCutsParams>(),
+                o(&[0, 4, 8, 12, 16, 20, 24, 28]),
+            ),
+            (
+                &cuts,
+                "LightNode",
+                size_of::<GpuLightNode>(),
+                o(&[
+                    offset_of!(GpuLightNode, value),
+                    offset_of!(GpuLightNode, index),
+                    offset_of!(GpuLightNode, leftleaf),
+                    offset_of!(GpuLightNode, pad),
+                ]),
+            ),
+            (
+                &cuts,
+                "CutsMaterial",
+                size_of::<GpuCutsMaterial>(),
+                o(&[
+                    offset_of!(GpuCutsMaterial, color),
+                    offset_of!(GpuCutsMaterial, diffuse),
+                    offset_of!(GpuCutsMaterial, kind),
+                    offset_of!(GpuCutsMaterial, alpha),
+                    offset_of!(GpuCutsMaterial, spread),
+                    offset_of!(GpuCutsMaterial, ior),
+                    offset_of!(GpuCutsMaterial, table),
+                    offset_of!(GpuCutsMaterial, internal_reflectance),
+                    offset_of!(GpuCutsMaterial, pad),
+                ]),
+            ),
             (
                 &sg_match,
                 "MatchParams",

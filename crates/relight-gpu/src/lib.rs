@@ -1,6 +1,6 @@
 //! # relight-gpu: the headless GPU renderer (wgpu, WGSL, Vulkan)
 //!
-//! The `sh`, `hybrid` and `sg` frames of `relight-method` on the GPU: the same inputs (a
+//! The `sh`, `hybrid`, `sg` and `cuts` frames of `relight-method` on the GPU: the same inputs (a
 //! bake, an environment, a camera, [`FrameOptions`]) and the same output (a linear-radiance
 //! [`Image`] plus per-pixel coverage), so a GPU frame is compared with the CPU frame pixel
 //! by pixel. The interactive viewer (issue 13, phase 2) will draw with these frames.
@@ -10,6 +10,7 @@
 //! | `sh` | SH projection + rotation (CPU), per-vertex SH dot product (compute pass) | raster pass, resolve pass |
 //! | `hybrid` | decomposition, SH part (CPU), per-vertex dot product (compute pass), lights | one depth pass per light and the maps' min pyramids (compute pass) *when the lights changed* (cache key: light directions and map size), shading pass, resolve pass |
 //! | `sg` | prefiltered chain (CPU) uploaded as a 6-layer texture with one mip per level | per-vertex view blend (CPU), upload of the blended lobes, lobe matching per triangle (compute pass), shading pass, resolve pass |
+//! | `cuts` | light samples' power and illumination cut (CPU, the CPU frame's code) uploaded with every tree node's direction and spread; the vertex cuts once per bake | shading pass (per sample: the sec. 3.2 merge of the light cut and three vertex cuts, Eq. 5 with the BRDF), resolve pass |
 //!
 //! # Conventions
 //! * Rasterisation matches `relight_render::raster`: Mitsuba's perspective camera, samples
@@ -21,7 +22,7 @@
 //! * Data layouts the GPU reads are defined once in [`layout`] (`#[repr(C)]`, `Pod`, sizes
 //!   asserted at compile time), each naming its WGSL twin in `src/shaders/`.
 //! * One `.wgsl` file per method (`sh.wgsl`, `hybrid.wgsl` + `shadow.wgsl`, `sg.wgsl` +
-//!   `sg_match.wgsl`), with `common.wgsl` (camera, projection), `light.wgsl`, `sg_lobes.wgsl`
+//!   `sg_match.wgsl`, `cuts.wgsl`), with `common.wgsl` (camera, projection), `light.wgsl`, `sg_lobes.wgsl`
 //!   and `sh_shade.wgsl` shared; a method adds its shader and one arm of [`frame_of`].
 //! * The background ([`FrameOptions::background`]) is drawn in the resolve pass for latlong
 //!   and cube maps (the CPU's bilinear fetch); an angular probe's background is refused.
@@ -40,6 +41,7 @@
 //! ```
 
 mod context;
+mod cuts;
 mod error;
 mod hybrid;
 pub mod layout;
@@ -128,7 +130,10 @@ pub trait GpuFrame {
 ///
 /// # Errors
 /// As `Baked::frame_of` (a bake of another kind, a part of a sharded bake, settings out of
-/// range), and [`GpuError::Unsupported`] for a method without a GPU shader yet (`cuts`).
+/// range), and [`GpuError::Unsupported`] for a method without a GPU shader yet (`vmf`) and
+/// for what the `cuts` frame does not render on the GPU yet (bakes of surface samples,
+/// texture and normal maps, materials other than Lambert, the GGX conductor and the GGX
+/// plastic).
 pub fn frame_of<'a>(
     gpu: &'a Gpu,
     baked: &'a Baked,
@@ -155,8 +160,11 @@ pub fn frame_of_path<'a>(
             Ok(Box::new(hybrid::HybridGpuFrame::new(gpu, b, s)?))
         }
         (Baked::Sg(b), FrameSettings::Sg(s)) => Ok(Box::new(sg::SgGpuFrame::new(gpu, b, s)?)),
+        (Baked::Cuts(b), FrameSettings::Cuts(s)) => {
+            Ok(Box::new(cuts::CutsGpuFrame::new(gpu, b, s)?))
+        }
         (_, s) => Err(GpuError::Unsupported(format!(
-            "--method {} has no GPU renderer yet (the GPU renders sh, hybrid and sg)",
+            "--method {} has no GPU renderer yet (the GPU renders sh, hybrid, sg and cuts)",
             s.method().name()
         ))),
     }

@@ -16,7 +16,7 @@ use std::path::PathBuf;
      run only, an error shown in the window (each is also printed on stdout)."
 ))]
 pub struct Args {
-    /// The baked bundle (any method; the GPU renders sh, hybrid and sg).
+    /// The baked bundle (any method; the GPU renders sh, hybrid, sg and cuts).
     pub bundle: PathBuf,
     /// Start with this environment map (.hdr / .exr) instead of the bundle's.
     #[arg(long)]

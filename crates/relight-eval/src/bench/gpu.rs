@@ -1,5 +1,5 @@
-//! The GPU renderer (section "GPU", feature `gpu`): frames of `sh`, `hybrid` and `sg` at
-//! 1280 x 720 on the Vulkan adapter relight-gpu picks (lavapipe on a machine without a GPU),
+//! The GPU renderer (section "GPU", feature `gpu`): frames of `sh`, `hybrid`, `sg` at
+//! 1280 x 720 and `cuts` at 320 x 180 on the Vulkan adapter relight-gpu picks (lavapipe on a machine without a GPU),
 //! each next to the CPU frame of the same bake, environment and camera measured in the same
 //! run; the CPU-side work a frame needs against a 2 ms budget; and the per-frame counts
 //! (passes, draw calls, bytes uploaded) that carry over to a real GPU.
@@ -116,14 +116,30 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
         ),
         &sg_settings,
     )?;
+    // cuts: 4096 environment lights (the paper's 32K would bake for minutes on 2 cores), at
+    // 320 x 180: lavapipe runs the per-sample merge on the CPU's cores (a 320 x 240 frame of
+    // a 1514-vertex sphere and plane took 12.7 s, 2026-12-02), so 1280 x 720 would take
+    // minutes per frame.
+    let (cuts, mut cuts_scene) = bake::<relight_method::cuts::Cuts>(
+        &desc(
+            if quick { 8 } else { 16 },
+            r#"{"type": "ggx_conductor", "specular": [0.9, 0.7, 0.4], "alpha": 0.2}"#,
+        ),
+        &relight_bake::cuts::CutsBakeSettings {
+            lights: 4096,
+            ..Default::default()
+        },
+    )?;
+    (cuts_scene.camera.width, cuts_scene.camera.height) = (320, 180);
     let title = format!(
-        "GPU renderer: frames at 1280 x 720, 1 sample per pixel, on {} (lavapipe is a CPU rasteriser: correctness-level times; the counts carry over to a GPU)",
+        "GPU renderer: frames at 1280 x 720 (cuts: 320 x 180), 1 sample per pixel, on {} (lavapipe is a CPU rasteriser: correctness-level times; the counts carry over to a GPU)",
         gpu.adapter_name()
     );
     let mut frames = Section::new(
         title,
         &[
             "method",
+            "pixels",
             "vertices",
             "CPU frame ms (median)",
             "GPU frame ms (median, read-back included)",
@@ -143,6 +159,11 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
             FrameSettings::Hybrid(HybridSettings::default()),
         ),
         (&sg, &sg_scene, FrameSettings::default_for(MethodKind::Sg)),
+        (
+            &cuts,
+            &cuts_scene,
+            FrameSettings::default_for(MethodKind::Cuts),
+        ),
     ];
     for (b, scene, fs) in &cases {
         let camera = scene.camera;
@@ -166,6 +187,7 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
         let gpu_ms = median(times);
         frames.row(vec![
             json!(fs.method().name()),
+            json!(format!("{} x {}", camera.width, camera.height)),
             json!(b.scene().mesh.vertex_count()),
             json!(cpu_ms),
             json!(gpu_ms),
@@ -240,11 +262,27 @@ pub(super) fn sections(quick: bool) -> crate::Result<Vec<Section>> {
             med(runs, || drop(r.prepare(&l, eye))),
         );
     }
-    cpu.row(vec![
-        json!("light cut (cuts: no GPU renderer yet, not measured here)"),
-        json!(null),
-        json!(BUDGET_MS),
-        json!("n/a"),
-    ]);
+    if let Baked::Cuts(b) = &cuts {
+        let s = relight_method::cuts::CutsFrameSettings::default();
+        let bk = &b.bake;
+        let light_cut = || {
+            relight_bake::cuts::samples::sample_power(&bk.samples, &cuts_scene.env).and_then(|p| {
+                relight_bake::cuts::light_cut::LightCut::build(
+                    &bk.tree,
+                    &p,
+                    s.light_sigma,
+                    s.light_cut,
+                )
+            })
+        };
+        light_cut().map_err(|e| crate::EvalError::Options(format!("bench gpu: {e}")))?;
+        row(
+            &format!(
+                "light samples' power + illumination cut (cuts; {} lights, {} nodes; per environment or rotation)",
+                b.settings.lights, s.light_cut
+            ),
+            med(runs, || drop(light_cut())),
+        );
+    }
     Ok(vec![frames, cpu])
 }
