@@ -96,6 +96,9 @@ pub struct SgBake {
     pub materials: Vec<Material>,
     /// How the fit went.
     pub stats: SgFitStats,
+    /// The lobes' radial shape (the fit's [`SgFitSettings::lobe_kernel`]): every lobe of the
+    /// bake is `a K(1 - mu . v; lambda)` ([`relight_sphere::sg_kernel`]).
+    pub kernel: relight_sphere::sg_kernel::LobeKernel,
 }
 
 impl SgBake {
@@ -136,6 +139,7 @@ impl SgBake {
             },
             materials: vec![material; vc],
             stats: SgFitStats::default(),
+            kernel: Default::default(),
         }
     }
 }
@@ -173,6 +177,31 @@ pub enum LobeShape {
     /// data's for every lobe count; a GGX lobe's tails widen its Gaussian instead of
     /// brightening its core.
     Moments,
+}
+
+/// The radial shape of the fitted lobes (issue 10 item 3; [`relight_sphere::sg_kernel`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SgKernel {
+    /// Green 2005's spherical Gaussian `exp(lambda (mu . v - 1))`: every bake before this
+    /// setting existed.
+    #[default]
+    Gaussian,
+    /// The heavy-tailed kernel `~ (1 + lambda (1 - mu . v) / 2)^-2` of a GGX lobe (four
+    /// Gaussian terms; four prefiltered fetches per lobe at render time).
+    Ggx,
+}
+
+impl SgKernel {
+    /// The kernel of `relight_sphere`.
+    pub fn kernel(self) -> relight_sphere::sg_kernel::LobeKernel {
+        use relight_sphere::sg_kernel::LobeKernel;
+        match self {
+            SgKernel::Gaussian => LobeKernel::Gaussian,
+            SgKernel::Ggx => LobeKernel::Ggx,
+        }
+    }
 }
 
 /// Where the flood fill starts the fit of a (vertex, view) in its first sweep (issue 10).
@@ -236,6 +265,11 @@ pub struct SgFitSettings {
     #[serde(default)]
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_shape))]
     pub lobe_shape: LobeShape,
+    /// The lobes' radial shape ([`SgKernel`]). Bundles written before this setting existed
+    /// were fitted with Gaussians.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_kernel))]
+    pub lobe_kernel: SgKernel,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]
     pub regions: usize,
@@ -515,5 +549,6 @@ fn assemble(
         },
         materials: vm,
         stats: fitted.stats,
+        kernel: settings.fit.lobe_kernel.kernel(),
     }
 }

@@ -258,18 +258,20 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
     let o = relight(&["view", s(&b), "--script", s(&bad)]);
     assert_clean_failure(&o, &format!("{}:3:", bad.display()), &dir.join("none"));
     let Some(x) = xvfb() else { return };
-    // A cuts bundle: the GPU has no cuts renderer yet.
+    // A vmf bundle: the GPU has no vmf renderer yet.
     let scene = dir.join("scene.json");
-    let cuts = dir.join("cuts.relight");
+    let vmf = dir.join("vmf.relight");
     let o = relight(&[
         "bake",
         s(&scene),
         "-o",
-        s(&cuts),
+        s(&vmf),
         "--method",
-        "cuts",
-        "--cut-lights",
-        "256",
+        "vmf",
+        "--view-level",
+        "1",
+        "--paths",
+        "64",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     // An environment with a NaN texel (written with the exr crate: relight refuses to).
@@ -284,7 +286,7 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
     .unwrap();
     let missing = dir.join("missing.relight");
     for (args, must_show) in [
-        (vec![s(&cuts)], "cuts"),
+        (vec![s(&vmf)], "vmf"),
         (vec![s(&b), "--env", s(&nan)], "nan.exr"),
         (vec![s(&missing)], "missing.relight"),
     ] {

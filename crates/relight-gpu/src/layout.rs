@@ -203,8 +203,12 @@ pub struct GpuSgParams {
     pub base_size: u32,
     /// `ln lambda` of each level, sharpest first (4 per vec4).
     pub ln_lambda: [[f32; 4]; MAX_CHAIN_LEVELS / 4],
+    /// The lobe kernel's rates `c_j` (`relight_sphere::sg_kernel`; unused terms 0).
+    pub kernel_rate: [f32; 4],
+    /// The lobe kernel's weights `w_j` (unused terms 0: skipped).
+    pub kernel_weight: [f32; 4],
 }
-const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS);
+const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS + 32);
 
 /// The `cuts` shading pass's parameters. WGSL twin: `CutsParams` in `shaders/cuts.wgsl`.
 #[repr(C)]
@@ -451,6 +455,8 @@ mod tests {
                     offset_of!(S, match_lobes),
                     offset_of!(S, base_size),
                     offset_of!(S, ln_lambda),
+                    offset_of!(S, kernel_rate),
+                    offset_of!(S, kernel_weight),
                 ]),
             ),
         ];

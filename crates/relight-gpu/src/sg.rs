@@ -229,6 +229,8 @@ impl GpuFrame for SgGpuFrame<'_> {
             match_lobes: opts.match_corners as u32,
             base_size: n as u32,
             ln_lambda,
+            kernel_rate: std::array::from_fn(|j| b.kernel.terms().get(j).map_or(0.0, |t| t.0)),
+            kernel_weight: std::array::from_fn(|j| b.kernel.terms().get(j).map_or(0.0, |t| t.1)),
         };
         gpu.write(
             &self.params,

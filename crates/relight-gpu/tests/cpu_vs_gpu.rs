@@ -500,6 +500,32 @@ fn sg_frame_matches_the_cpu_frame() {
         .is_err());
 }
 
+/// The GGX-shaped lobe kernel (`relight_sphere::sg_kernel`, four Gaussian terms per lobe in
+/// the corner blend's energies and in the prefiltered fetches): the same lobes read with that
+/// kernel on both sides. Control: the GPU reading them as Gaussians is off.
+#[test]
+fn sg_frame_with_the_ggx_kernel_matches_the_cpu_frame() {
+    let Some(gpu) = gpu() else { return };
+    let (mut b, scene) = sg_bake();
+    let fs = FrameSettings::Sg(relight_method::sg::SgFrameSettings {
+        prefilter_size: 64,
+        ..Default::default()
+    });
+    let gaussian = b.clone();
+    if let Baked::Sg(s) = &mut b {
+        s.bake.kernel = relight_sphere::sg_kernel::LobeKernel::Ggx;
+    }
+    let c = cpu(&b, &fs, &scene, &opts());
+    let g = gpu_render(&gpu, &b, &fs, &scene, &opts());
+    Diff::of(&c, &g)
+        .check(REL_TOL, MAX_OUTLIERS, REL_TOL)
+        .unwrap();
+    let g = gpu_render(&gpu, &gaussian, &fs, &scene, &opts());
+    assert!(Diff::of(&c, &g)
+        .check(REL_TOL, MAX_OUTLIERS, REL_TOL)
+        .is_err());
+}
+
 #[test]
 fn what_the_gpu_does_not_render_is_refused_by_name() {
     let Some(gpu) = gpu() else { return };

@@ -445,6 +445,7 @@ fn from_part(p: SgPart, s: &SgBakeSettings) -> (SgBake, SgPartRows) {
             iterations: p.fit.iterations,
             ..SgFitStats::default()
         },
+        kernel: s.fit.lobe_kernel.kernel(),
     };
     let rows = SgPartRows {
         vertices: p.fit.vertices,

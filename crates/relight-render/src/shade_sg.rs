@@ -71,6 +71,7 @@ use relight_sphere::env_prefilter::{
 use relight_sphere::envmap::{EnvLayout, EnvMap};
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
+use relight_sphere::sg_kernel::LobeKernel;
 use relight_sphere::sh;
 use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
@@ -357,6 +358,13 @@ impl SgLighting {
             + (at(r1, c0) * (1.0 - fx) + at(r1, c1) * fx) * fy
     }
 
+    /// `int a K(w) L(w) dw` of a lobe of kernel `kernel` whose axis is in the map frame: one
+    /// [`SgLighting::integrate`] per Gaussian term ([`relight_sphere::sg_kernel`]).
+    #[inline]
+    pub fn integrate_kernel(&self, kernel: LobeKernel, lobe_in_map: &SgLobe) -> Vec3 {
+        kernel.integrate_with(lobe_in_map, |g| self.integrate(g))
+    }
+
     /// `int G(w) L(w) dw` of a lobe whose axis is in the map frame (eq. 2.7, one lobe):
     /// `scale a unit_integral(lambda) P(mu, lambda)`.
     #[inline]
@@ -431,6 +439,20 @@ impl Default for ShadeOptions {
             corners: LobeBlend::Energy,
             match_corners: true,
         }
+    }
+}
+
+/// [`unit_integral_f32`] of a kernel's unit lobe, `sum_j w_j I(c_j lambda)`
+/// ([`relight_sphere::sg_kernel`]).
+#[inline]
+pub fn kernel_integral_f32(kernel: LobeKernel, lambda: f32) -> f32 {
+    match kernel {
+        LobeKernel::Gaussian => unit_integral_f32(lambda),
+        _ => kernel
+            .terms()
+            .iter()
+            .map(|&(c, w)| w * unit_integral_f32(c * lambda))
+            .sum(),
     }
 }
 
@@ -541,6 +563,7 @@ impl<'a> SgRenderer<'a> {
             for k in 0..lobes.lobe_count {
                 *o.next().expect("out holds lobe_count lobes") = blend3_with(
                     self.options.views,
+                    self.bake.kernel,
                     [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
                     b,
                 );
@@ -628,6 +651,7 @@ impl<'a> SgRenderer<'a> {
             for k in 0..count {
                 let lobe = blend3_with(
                     self.options.corners,
+                    self.bake.kernel,
                     [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
                     f.bary,
                 );
@@ -652,7 +676,9 @@ impl<'a> SgRenderer<'a> {
         let frame = self.prepare(lighting, Vec3::from(camera.origin));
         let t1 = Instant::now();
         let img = raster::render_deferred(self.mesh, camera, background, opts, |f| {
-            self.shade(&frame, f, |l| lighting.integrate(l))
+            self.shade(&frame, f, |l| {
+                lighting.integrate_kernel(self.bake.kernel, l)
+            })
         });
         let t2 = Instant::now();
         let times = SgTimes {
@@ -663,7 +689,8 @@ impl<'a> SgRenderer<'a> {
     }
 
     /// Deferred per-pixel shading of `frame` (from [`SgRenderer::prepare`], or built by hand
-    /// with lobes per vertex in the map frame) with `integrate` for each blended lobe: the
+    /// with lobes per vertex in the map frame) with `integrate` for each Gaussian term of each
+    /// blended lobe (one per lobe for Gaussian bakes, [`relight_sphere::sg_kernel`]): the
     /// second pass of [`SgRenderer::render`] with any integrator (the error budget swaps the
     /// prefiltered fetch for a finer one, and the bake's lobes for exact-view fits).
     ///
@@ -680,8 +707,9 @@ impl<'a> SgRenderer<'a> {
         assert_eq!(frame.lobe_count, self.lobe_count(), "lobes per vertex");
         assert_eq!(frame.lobes.len(), vc * frame.lobe_count, "lobes per vertex");
         assert_eq!(frame.diffuse.len(), vc, "diffuse per vertex");
+        let kernel = self.bake.kernel;
         raster::render_deferred(self.mesh, camera, None, opts, |f| {
-            self.shade(frame, f, &integrate)
+            self.shade(frame, f, |l| kernel.integrate_with(l, &integrate))
         })
     }
 

@@ -69,6 +69,7 @@ pub mod probe;
 pub mod quadrature;
 pub mod sg;
 pub mod sg_fit;
+pub mod sg_kernel;
 pub mod sh;
 pub mod sh_product;
 pub mod vmf;

@@ -80,8 +80,9 @@ pub use moments::match_moments;
 
 use crate::envmap::EnvMap;
 use crate::sg::SgLobe;
+use crate::sg_kernel::LobeKernel;
 use crate::Vec3;
-use lm::{dot, finish, levenberg_marquardt, objective, Arr64, Lobe64};
+use lm::{dot, finish, levenberg_marquardt, objective, unit64, Arr64, Lobe64};
 
 /// A spherical function tabulated at quadrature points (directions, weights, RGB values).
 #[derive(Clone, Debug)]
@@ -179,6 +180,9 @@ pub struct FitOptions {
     pub prior_weights: PriorWeights,
     /// The energy term (module docs), if any.
     pub energy: Option<EnergyTarget>,
+    /// The lobes' radial shape ([`crate::sg_kernel`]): the model is `sum_k a_k K(1 - mu_k .
+    /// w; lambda_k)`, the Gaussian of the formulas above by default.
+    pub kernel: LobeKernel,
 }
 
 /// The energy term `w_E sum_c (sum_k a_kc I(lambda_k) - E_c)^2` (module docs): the mixture's
@@ -204,6 +208,7 @@ impl Default for FitOptions {
                 width: 0.0,
             },
             energy: None,
+            kernel: LobeKernel::Gaussian,
         }
     }
 }
@@ -302,7 +307,7 @@ pub fn fit(target: &FitTarget, n: usize, opts: &FitOptions, prior: Option<&[SgLo
         lobes = l2;
         cost = c;
         iterations += it;
-        model_of(target, &lobes, &mut model);
+        model_of(target, &lobes, &mut model, opts);
     }
     finish(target, lobes, cost, iterations, opts)
 }
@@ -311,11 +316,11 @@ pub fn fit(target: &FitTarget, n: usize, opts: &FitOptions, prior: Option<&[SgLo
 mod tests;
 
 /// The mixture of `lobes` at every sample of `target`, into `model`.
-fn model_of(target: &FitTarget, lobes: &[Lobe64], model: &mut [[f64; 3]]) {
+fn model_of(target: &FitTarget, lobes: &[Lobe64], model: &mut [[f64; 3]], opts: &FitOptions) {
     for (i, m) in model.iter_mut().enumerate() {
         *m = [0.0; 3];
         for l in lobes {
-            let g = (l.log_l.exp() * (dot(l.mu, target.dirs[i]) - 1.0)).exp();
+            let g = unit64(opts.kernel, l.log_l.exp(), dot(l.mu, target.dirs[i]));
             for c in 0..3 {
                 m[c] += l.a[c] * g;
             }
@@ -361,7 +366,7 @@ fn residual_lobe64(target: &FitTarget, model: &[[f64; 3]], opts: &FitOptions) ->
         let lam = (lambda * 2f64.powf(0.5 * j as f64)).clamp(lo, hi);
         let (mut num, mut den) = ([0.0; 3], 0.0);
         for i in 0..target.len() {
-            let g = (lam * (dot(mu, target.dirs[i]) - 1.0)).exp();
+            let g = unit64(opts.kernel, lam, dot(mu, target.dirs[i]));
             den += target.weights[i] * g * g;
             for c in 0..3 {
                 num[c] += target.weights[i] * g * (target.values[i][c] - model[i][c]);
@@ -392,6 +397,6 @@ pub fn residual_lobe(target: &FitTarget, lobes: &[SgLobe], opts: &FitOptions) ->
     debug_assert!(opts.lambda_min > 0.0 && opts.lambda_min < opts.lambda_max);
     let l: Vec<Lobe64> = lobes.iter().map(Lobe64::from_lobe).collect();
     let mut model = vec![[0.0f64; 3]; target.len()];
-    model_of(target, &l, &mut model);
+    model_of(target, &l, &mut model, opts);
     residual_lobe64(target, &model, opts).to_lobe()
 }

@@ -34,6 +34,7 @@ impl Default for SgFitSettings {
             fit_start: super::FitStart::default(),
             lobe_order: super::LobeOrder::default(),
             lobe_shape: super::LobeShape::default(),
+            lobe_kernel: super::SgKernel::default(),
             regions: 0,
             energy: true,
         }
@@ -54,6 +55,14 @@ impl SgFitSettings {
             return err(format!(
                 "fit.regions {} is not in 0..={MAX_REGIONS}",
                 self.regions
+            ));
+        }
+        if self.lobe_shape == super::LobeShape::Moments
+            && self.lobe_kernel != super::SgKernel::Gaussian
+        {
+            return err(format!(
+                "fit.lobe_shape moments matches Gaussian moments: it needs fit.lobe_kernel gaussian, not {}",
+                self.lobe_kernel.kernel().name()
             ));
         }
         for (name, w) in [
@@ -274,5 +283,19 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("direct_res 4096"), "{e}");
+    }
+
+    /// Moment matching is a Gaussian's (one EM M-step of a vMF): refused with another kernel.
+    #[test]
+    fn moments_need_the_gaussian_kernel() {
+        let mut f = SgFitSettings {
+            lobe_shape: super::super::LobeShape::Moments,
+            lobe_kernel: super::super::SgKernel::Ggx,
+            ..SgFitSettings::default()
+        };
+        let e = f.validate().unwrap_err().to_string();
+        assert!(e.contains("lobe_kernel gaussian"), "{e}");
+        f.lobe_kernel = super::super::SgKernel::Gaussian;
+        f.validate().unwrap();
     }
 }

@@ -47,6 +47,7 @@ use relight_sphere::cubemap::{texel_coords, texel_dir, texel_index, texel_solid_
 use relight_sphere::env_prefilter::PrefilterLevel;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
+use relight_sphere::sg_kernel::LobeKernel;
 use std::path::Path;
 
 /// One row of the budget.
@@ -115,16 +116,20 @@ fn texel_means(env: &Environment, n: usize) -> Vec<Vec3> {
         .collect()
 }
 
-/// `int G L` of world-frame lobes through `lighting` (axes rotated into the map frame).
-fn integrate_world(lighting: &SgLighting, lobes: &[SgLobe]) -> Vec3 {
+/// `int a K L` of world-frame lobes of kernel `kernel` through `lighting` (axes rotated into
+/// the map frame).
+fn integrate_world(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe]) -> Vec3 {
     lobes
         .iter()
         .filter(|l| l.amplitude != Vec3::ZERO)
         .map(|l| {
-            lighting.integrate(&SgLobe {
-                axis: lighting.env_from_world * l.axis,
-                ..*l
-            })
+            lighting.integrate_kernel(
+                kernel,
+                &SgLobe {
+                    axis: lighting.env_from_world * l.axis,
+                    ..*l
+                },
+            )
         })
         .sum()
 }
@@ -213,7 +218,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             .sum();
         let (lobes, _) = fit_alone(&fit, &t);
         out[0] = sum;
-        out[1] = integrate_world(&dense, &lobes);
+        out[1] = integrate_world(&dense, bake.kernel, &lobes);
     });
 
     // Fits at the vertices: at their exact views, and at the three nearest bake views.
@@ -234,7 +239,13 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let (tri, w) = views.locate(view);
             let ids = views.triangles()[tri].map(|j| j as usize);
             let corners = ids.map(|j| fit_view(t, views.vertices()[j]));
-            let blended = blend_corners(b.shade, ids, [&corners[0], &corners[1], &corners[2]], w);
+            let blended = blend_corners(
+                b.shade,
+                bake.kernel,
+                ids,
+                [&corners[0], &corners[1], &corners[2]],
+                w,
+            );
             [exact, blended].map(|mut l| {
                 for g in &mut l {
                     g.axis = r * g.axis;
@@ -299,6 +310,7 @@ const SUPERSAMPLE: u32 = 4;
 /// view of lowest index when `shade.match_views`).
 fn blend_corners(
     shade: ShadeOptions,
+    kernel: LobeKernel,
     ids: [usize; 3],
     l: [&[SgLobe]; 3],
     w: [f32; 3],
@@ -312,7 +324,14 @@ fn blend_corners(
         }
     }
     (0..l[0].len())
-        .map(|k| blend3_with(shade.views, [0, 1, 2].map(|c| &l[c][p[c][k] as usize]), w))
+        .map(|k| {
+            blend3_with(
+                shade.views,
+                kernel,
+                [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
+                w,
+            )
+        })
         .collect()
 }
 

@@ -154,7 +154,14 @@ fn fs(f: VOut) -> @location(0) vec4<f32> {
             let amp = lobe.amplitude.xyz;
             let lambda = lobe.axis_sharpness.w;
             if (any(amp != vec3<f32>(0.0)) && lambda > 0.0) {
-                sum += amp * sample_chain(lobe.axis_sharpness.xyz, lambda) * (params.scale * unit_integral(lambda));
+                // One prefiltered fetch per term of the lobe kernel (relight_sphere::sg_kernel).
+                for (var j = 0u; j < 4u; j++) {
+                    let w = params.kernel_weight[j];
+                    if (w != 0.0) {
+                        let lj = params.kernel_rate[j] * lambda;
+                        sum += (w * amp) * sample_chain(lobe.axis_sharpness.xyz, lj) * (params.scale * unit_integral(lj));
+                    }
+                }
             }
         }
         start += count;

@@ -24,6 +24,8 @@ struct SgParams {
     match_lobes: u32,
     base_size: u32,
     ln_lambda: array<vec4<f32>, 4>,
+    kernel_rate: vec4<f32>,
+    kernel_weight: vec4<f32>,
 }
 
 // relight_render::shade_sg::unit_integral_f32: 2 pi (1 - exp(-2 lambda)) / lambda.
@@ -39,6 +41,19 @@ fn unit_integral(lambda: f32) -> f32 {
         return -TWO_PI * em1 / lambda;
     }
     return 2.0 * TWO_PI;
+}
+
+// relight_render::shade_sg::kernel_integral_f32: sum_j w_j unit_integral(c_j lambda) over the
+// lobe kernel's terms (relight_sphere::sg_kernel; terms of weight 0 are unused).
+fn kernel_integral(lambda: f32) -> f32 {
+    var s = 0.0;
+    for (var j = 0u; j < 4u; j++) {
+        let w = params.kernel_weight[j];
+        if (w != 0.0) {
+            s += w * unit_integral(params.kernel_rate[j] * lambda);
+        }
+    }
+    return s;
 }
 
 fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
@@ -60,18 +75,31 @@ fn heaviest(w: vec3<f32>) -> u32 {
 
 // blend3: axes summed and renormalised, sharpness and amplitude linear.
 fn blend_linear(l0: Lobe, l1: Lobe, l2: Lobe, w: vec3<f32>) -> Lobe {
+    // blend3: a corner with an unused lobe (zero amplitude) weighs in the amplitude only.
+    let used = vec3<f32>(
+        select(0.0, 1.0, any(l0.amplitude.xyz != vec3<f32>(0.0))),
+        select(0.0, 1.0, any(l1.amplitude.xyz != vec3<f32>(0.0))),
+        select(0.0, 1.0, any(l2.amplitude.xyz != vec3<f32>(0.0))),
+    );
+    var u = w * used;
+    let s = u.x + u.y + u.z;
+    if (s > 0.0) {
+        u = u / s;
+    } else {
+        u = w;
+    }
     var axes = array<vec3<f32>, 3>(l0.axis_sharpness.xyz, l1.axis_sharpness.xyz, l2.axis_sharpness.xyz);
-    let axis = normalize_or(axes[0] * w.x + axes[1] * w.y + axes[2] * w.z, axes[heaviest(w)]);
-    let sharp = l0.axis_sharpness.w * w.x + l1.axis_sharpness.w * w.y + l2.axis_sharpness.w * w.z;
+    let axis = normalize_or(axes[0] * u.x + axes[1] * u.y + axes[2] * u.z, axes[heaviest(u)]);
+    let sharp = l0.axis_sharpness.w * u.x + l1.axis_sharpness.w * u.y + l2.axis_sharpness.w * u.z;
     let amp = l0.amplitude.xyz * w.x + l1.amplitude.xyz * w.y + l2.amplitude.xyz * w.z;
     return Lobe(vec4<f32>(axis, sharp), vec4<f32>(amp, 0.0));
 }
 
 // blend3_energy: energies linear, axis and sharpness weighted by each corner's energy.
 fn blend_energy(l0: Lobe, l1: Lobe, l2: Lobe, w: vec3<f32>) -> Lobe {
-    let e0 = l0.amplitude.xyz * unit_integral(l0.axis_sharpness.w);
-    let e1 = l1.amplitude.xyz * unit_integral(l1.axis_sharpness.w);
-    let e2 = l2.amplitude.xyz * unit_integral(l2.axis_sharpness.w);
+    let e0 = l0.amplitude.xyz * kernel_integral(l0.axis_sharpness.w);
+    let e1 = l1.amplitude.xyz * kernel_integral(l1.axis_sharpness.w);
+    let e2 = l2.amplitude.xyz * kernel_integral(l2.axis_sharpness.w);
     let energy = e0 * w.x + e1 * w.y + e2 * w.z;
     var u = vec3<f32>(w.x * (e0.x + e0.y + e0.z), w.y * (e1.x + e1.y + e1.z), w.z * (e2.x + e2.y + e2.z));
     let total = u.x + u.y + u.z;
@@ -84,7 +112,7 @@ fn blend_energy(l0: Lobe, l1: Lobe, l2: Lobe, w: vec3<f32>) -> Lobe {
     var axes = array<vec3<f32>, 3>(l0.axis_sharpness.xyz, l1.axis_sharpness.xyz, l2.axis_sharpness.xyz);
     let axis = normalize_or(axes[0] * u.x + axes[1] * u.y + axes[2] * u.z, axes[heaviest(u)]);
     let sharp = l0.axis_sharpness.w * u.x + l1.axis_sharpness.w * u.y + l2.axis_sharpness.w * u.z;
-    return Lobe(vec4<f32>(axis, sharp), vec4<f32>(energy / unit_integral(sharp), 0.0));
+    return Lobe(vec4<f32>(axis, sharp), vec4<f32>(energy / kernel_integral(sharp), 0.0));
 }
 
 fn lobe_distance(a: Lobe, b: Lobe) -> f32 {

@@ -265,6 +265,7 @@ pub(super) fn load(b: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
                 flips: stats.flips,
                 flips_after_relaxation: stats.flips_after_relaxation,
             },
+            kernel: settings.bake.fit.lobe_kernel.kernel(),
         },
         settings,
         record,

@@ -8,6 +8,7 @@ use relight_bake::sg::{SgFitStats, SgLobes};
 use relight_bake::sh::{ShTransfer, ShTransferKind};
 use relight_scene::scene_file::SceneDesc;
 use relight_sphere::sg::SgLobe;
+use relight_sphere::sg_kernel::LobeKernel;
 use relight_sphere::warp::Rng;
 
 fn scene() -> SceneDesc {
@@ -99,6 +100,7 @@ fn baked(f16: bool) -> SgBaked {
                 flips: 3,
                 flips_after_relaxation: 1,
             },
+            kernel: settings.bake.fit.lobe_kernel.kernel(),
         },
         settings,
         record: BakeRecord {
@@ -137,6 +139,19 @@ fn f32_bundle_round_trips_exactly() {
     assert_eq!(a.scene.mesh.indices, b.scene.mesh.indices);
     // 92 views x 3 lobes x 7 floats + 9 SH coefficients, 4 bytes each.
     assert_eq!(a.transfer_bytes_per_vertex(), 4 * (92 * 3 * 7 + 9));
+    assert_eq!(b.bake.kernel, LobeKernel::Gaussian);
+}
+
+/// The lobe kernel is part of the bake's settings: a `--lobe-kernel ggx` bundle is read back
+/// as one (its lobes are not Gaussians and must not be rendered as such).
+#[test]
+fn the_lobe_kernel_round_trips() {
+    let mut a = baked(false);
+    a.settings.bake.fit.lobe_kernel = relight_bake::sg::SgKernel::Ggx;
+    a.bake.kernel = LobeKernel::Ggx;
+    let b = round_trip(&Sg::store(&a).unwrap()).unwrap();
+    assert_eq!(b.settings, a.settings);
+    assert_eq!(b.bake.kernel, LobeKernel::Ggx);
 }
 
 #[test]

@@ -28,6 +28,7 @@
 
 use glam::Vec3;
 use relight_sphere::sg::SgLobe;
+use relight_sphere::sg_kernel::LobeKernel;
 
 /// How lobes are interpolated (module docs; which blend the frame uses where is
 /// `ShadeOptions`'s, chosen by docs/RESULTS.md §8).
@@ -43,13 +44,28 @@ pub enum LobeBlend {
 
 /// Blend three lobes with weights `w` (summing to 1): axes summed and renormalised,
 /// sharpness and amplitude linear (module docs). If the axes cancel, the axis of the
-/// heaviest corner is kept.
+/// heaviest corner is kept. A corner whose lobe is unused (zero amplitude: the fit had
+/// nothing for it, and its axis and sharpness are placeholders) lends its weight to the
+/// amplitude only: axis and sharpness are the other corners', renormalised (all three when
+/// every corner is unused).
 #[inline]
 pub fn blend3(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
-    let axis = l[0].axis * w[0] + l[1].axis * w[1] + l[2].axis * w[2];
+    let used = |j: usize| l[j].amplitude != Vec3::ZERO;
+    let u = if used(0) || used(1) || used(2) {
+        let u = [0, 1, 2].map(|j| if used(j) { w[j] } else { 0.0 });
+        let s = u[0] + u[1] + u[2];
+        if s > 0.0 {
+            u.map(|x| x / s)
+        } else {
+            w
+        }
+    } else {
+        w
+    };
+    let axis = l[0].axis * u[0] + l[1].axis * u[1] + l[2].axis * u[2];
     SgLobe {
-        axis: axis.try_normalize().unwrap_or(l[heaviest(w)].axis),
-        sharpness: l[0].sharpness * w[0] + l[1].sharpness * w[1] + l[2].sharpness * w[2],
+        axis: axis.try_normalize().unwrap_or(l[heaviest(u)].axis),
+        sharpness: l[0].sharpness * u[0] + l[1].sharpness * u[1] + l[2].sharpness * u[2],
         amplitude: l[0].amplitude * w[0] + l[1].amplitude * w[1] + l[2].amplitude * w[2],
     }
 }
@@ -69,11 +85,11 @@ fn heaviest(w: [f32; 3]) -> usize {
 /// integral `a int G` is `sum w_j a_j int G_j` exactly, per channel. Without energy at any
 /// corner it is [`blend3`] with zero amplitude.
 #[inline]
-pub fn blend3_energy(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
+pub fn blend3_energy(kernel: LobeKernel, l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
     let mut energy = Vec3::ZERO;
     let mut u = [0f32; 3];
     for j in 0..3 {
-        let e = l[j].amplitude * super::unit_integral_f32(l[j].sharpness);
+        let e = l[j].amplitude * super::kernel_integral_f32(kernel, l[j].sharpness);
         energy += e * w[j];
         u[j] = w[j] * e.element_sum();
     }
@@ -91,16 +107,16 @@ pub fn blend3_energy(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
     SgLobe {
         axis: axis.try_normalize().unwrap_or(l[heaviest(u)].axis),
         sharpness,
-        amplitude: energy / super::unit_integral_f32(sharpness),
+        amplitude: energy / super::kernel_integral_f32(kernel, sharpness),
     }
 }
 
 /// Blend with `mode`.
 #[inline]
-pub fn blend3_with(mode: LobeBlend, l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
+pub fn blend3_with(mode: LobeBlend, kernel: LobeKernel, l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
     match mode {
         LobeBlend::Linear => blend3(l, w),
-        LobeBlend::Energy => blend3_energy(l, w),
+        LobeBlend::Energy => blend3_energy(kernel, l, w),
     }
 }
 
@@ -213,7 +229,7 @@ mod tests {
         for _ in 0..1000 {
             let l: Vec<SgLobe> = (0..3).map(|_| random_lobe(&mut rng)).collect();
             let w = weights(&mut rng);
-            let b = blend3_energy([&l[0], &l[1], &l[2]], w);
+            let b = blend3_energy(LobeKernel::Gaussian, [&l[0], &l[1], &l[2]], w);
             let want: Vec3 = (0..3)
                 .map(|j| l[j].amplitude * unit_integral_f32(l[j].sharpness) * w[j])
                 .sum();
@@ -231,13 +247,28 @@ mod tests {
         let sharp = SgLobe::new(Vec3::Z, 500.0, Vec3::ONE);
         let off = SgLobe::new(Vec3::X, 0.05, Vec3::ZERO);
         for w in [0.1f32, 0.5, 0.9] {
-            let b = blend3_energy([&sharp, &off, &off], [w, 1.0 - w, 0.0]);
+            let b = blend3_energy(
+                LobeKernel::Gaussian,
+                [&sharp, &off, &off],
+                [w, 1.0 - w, 0.0],
+            );
             assert!((b.sharpness - 500.0).abs() < 1e-3 && b.axis.dot(Vec3::Z) > 0.9999);
-            // The energy fades with the weight; the linear blend keeps almost all of it.
+            // The energy fades with the weight.
             let e = |l: &SgLobe| l.amplitude.x * unit_integral_f32(l.sharpness);
             assert!((e(&b) / e(&sharp) - w).abs() < 1e-4);
+            // So does the linear blend's: an unused lobe (zero amplitude) lends its corner's
+            // weight to the amplitude only, not its placeholder axis and sharpness (before
+            // 2026-12-03 the blend broadened towards them, 500 -> 500 w, and kept the energy).
             let lin = blend3([&sharp, &off, &off], [w, 1.0 - w, 0.0]);
-            assert!(e(&lin) / e(&sharp) > 0.99, "{}", e(&lin) / e(&sharp));
+            assert!((lin.sharpness - 500.0).abs() < 1e-3 && lin.axis.dot(Vec3::Z) > 0.9999);
+            assert!(
+                (e(&lin) / e(&sharp) - w).abs() < 1e-4,
+                "{}",
+                e(&lin) / e(&sharp)
+            );
+            // Unused everywhere: the plain weights.
+            let none = blend3([&off, &off, &off], [w, 1.0 - w, 0.0]);
+            assert!(none.amplitude == Vec3::ZERO && (none.sharpness - 0.05).abs() < 1e-6);
         }
     }
 

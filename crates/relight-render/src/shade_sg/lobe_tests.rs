@@ -236,3 +236,24 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
         errors[0]
     );
 }
+
+/// Issue 10 item 3: the GGX-shaped lobe kernel (`--lobe-kernel ggx`, `relight_sphere::sg_kernel`)
+/// on the GGX sphere scene: each added lobe is no worse than one fewer, as with Gaussians.
+/// Measured 2026-12-03: 0.317, 0.314, 0.344 for 1, 2, 3 lobes, reference noise 0.037 (0.507
+/// at 3 lobes before unused lobes stopped steering the linear view blend, `blend3`). The
+/// kernel does not beat the Gaussian here (one lobe 0.305): this 16-texel scene's lobes sit
+/// at the sharpness bound (median 64), so the lobe's tails are not what limits it; the
+/// shape's gain is tested on the fit itself (`relight_sphere::sg_fit` tests,
+/// `one_ggx_kernel_lobe_fits_a_ggx_lobe_better_than_one_gaussian`) and measured on the
+/// evaluation's scenes (docs/RESULTS.md §8).
+#[test]
+fn ggx_kernel_lobes_are_never_worse() {
+    let ggx = bake_sg::SgFitSettings {
+        lobe_kernel: bake_sg::SgKernel::Ggx,
+        ..Default::default()
+    };
+    let (errors, noise) = errors_by_lobes(&sphere_scene(), ggx, &[ShadeOptions::default()]);
+    let errors = &errors[0];
+    eprintln!("ggx kernel: relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
+    assert!(monotone(errors, noise), "{errors:?} (noise {noise})");
+}

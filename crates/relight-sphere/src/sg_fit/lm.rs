@@ -7,6 +7,7 @@
 
 use super::{Arrangement, FitOptions, FitTarget, SgFit};
 use crate::sg::SgLobe;
+use crate::sg_kernel::LobeKernel;
 use crate::Vec3;
 
 /// [`Arrangement`] in f64: `sqrt(delta)` and the neighbours' difference vectors
@@ -109,7 +110,7 @@ pub(super) fn for_each_row(
 ) {
     let n = lobes.len();
     let ln_eps = ln_epsilon(opts);
-    let (mut g, mut e, mut lam) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut g, mut gc, mut gl, mut lam) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let (mut idx, mut val) = (vec![0usize; 4 * n], vec![0.0; 4 * n]);
     for (k, l) in lobes.iter().enumerate() {
         lam[k] = l.log_l.exp();
@@ -117,17 +118,24 @@ pub(super) fn for_each_row(
     let texels = if data { target.len() } else { 0 };
     for i in 0..texels {
         let (w, t) = (target.dirs[i], target.values[i]);
-        if !texel_exponents(lobes, &lam, w, t, ln_eps, &mut e) {
+        if !texel_values(
+            opts.kernel,
+            lobes,
+            &lam,
+            w,
+            t,
+            ln_eps,
+            &mut g,
+            &mut gc,
+            &mut gl,
+        ) {
             continue;
         }
         let sw = target.sqrt_w[i];
-        for k in 0..n {
-            g[k] = e[k].exp();
-        }
         for c in 0..3 {
             let mut f = 0.0;
             for (k, l) in lobes.iter().enumerate() {
-                let ag = sw * l.a[c] * g[k];
+                let sa = sw * l.a[c];
                 f += l.a[c] * g[k];
                 idx[4 * k..4 * k + 4].copy_from_slice(&[
                     6 * k + c,
@@ -136,9 +144,9 @@ pub(super) fn for_each_row(
                     6 * k + 5,
                 ]);
                 val[4 * k] = sw * g[k];
-                val[4 * k + 1] = ag * lam[k] * dot(l.s, w);
-                val[4 * k + 2] = ag * lam[k] * dot(l.t, w);
-                val[4 * k + 3] = ag * e[k];
+                val[4 * k + 1] = sa * gc[k] * dot(l.s, w);
+                val[4 * k + 2] = sa * gc[k] * dot(l.t, w);
+                val[4 * k + 3] = sa * gl[k];
             }
             row(sw * (f - t[c]), &idx, &val);
         }
@@ -171,7 +179,7 @@ pub(super) fn for_each_row(
             val.clear();
             let mut sum = 0.0;
             for (k, l) in lobes.iter().enumerate() {
-                let (i, di) = unit_integral64(lam[k]);
+                let (i, di) = kernel_integral64(opts.kernel, lam[k]);
                 sum += l.a[c] * i;
                 idx.extend([6 * k + c, 6 * k + 5]);
                 val.extend([sw * i, sw * l.a[c] * di]);
@@ -229,21 +237,54 @@ pub(super) fn ln_epsilon(o: &FitOptions) -> f64 {
     }
 }
 
-/// The exponents `e[k] = lambda_k (mu_k . w - 1)` of texel `w` with data `v`, and whether the
+/// The unit lobes at texel `w` with data `v`: values `g[k]`, `gc[k] = dg / d(mu_k . w)` and
+/// `gl[k] = dg / d ln lambda_k` for the fit's kernel ([`crate::sg_kernel`]), and whether the
 /// texel counts: its data is not zero, or some lobe is above `ln_eps` there ([`ln_epsilon`]).
+/// For the Gaussian `g = e^e`, `gc = lambda g`, `gl = e g` with `e = lambda (mu . w - 1)`.
 #[inline]
-fn texel_exponents(
+#[allow(clippy::too_many_arguments)]
+fn texel_values(
+    kernel: LobeKernel,
     lobes: &[Lobe64],
     lam: &[f64],
     w: [f64; 3],
     v: [f64; 3],
     ln_eps: f64,
-    e: &mut [f64],
+    g: &mut [f64],
+    gc: &mut [f64],
+    gl: &mut [f64],
 ) -> bool {
     let mut live = v != [0.0; 3];
-    for (k, l) in lobes.iter().enumerate() {
-        e[k] = lam[k] * (dot(l.mu, w) - 1.0);
-        live |= e[k] > ln_eps;
+    match kernel {
+        LobeKernel::Gaussian => {
+            for (k, l) in lobes.iter().enumerate() {
+                gl[k] = lam[k] * (dot(l.mu, w) - 1.0);
+                live |= gl[k] > ln_eps;
+            }
+            if live {
+                for k in 0..lobes.len() {
+                    let e = gl[k];
+                    g[k] = e.exp();
+                    gc[k] = lam[k] * g[k];
+                    gl[k] = e * g[k];
+                }
+            }
+        }
+        _ => {
+            for (k, l) in lobes.iter().enumerate() {
+                let x = dot(l.mu, w) - 1.0;
+                let (mut s, mut sc, mut sl) = (0.0, 0.0, 0.0);
+                for &(c, wt) in kernel.terms() {
+                    let cl = c as f64 * lam[k];
+                    let t = wt as f64 * (cl * x).exp();
+                    s += t;
+                    sc += cl * t;
+                    sl += cl * x * t;
+                }
+                (g[k], gc[k], gl[k]) = (s, sc, sl);
+                live |= s.ln() > ln_eps;
+            }
+        }
     }
     live
 }
@@ -258,18 +299,19 @@ pub(super) fn data_cost(t: &FitTarget, lobes: &[Lobe64], o: &FitOptions) -> f64 
     for (k, l) in lobes.iter().enumerate() {
         lam[k] = l.log_l.exp();
     }
-    let mut e = [0.0; 10];
+    let (mut g, mut gc, mut gl) = ([0.0; 10], [0.0; 10], [0.0; 10]);
     let mut sum = 0.0;
     for i in 0..t.len() {
         let (w, v) = (t.dirs[i], t.values[i]);
-        if !texel_exponents(lobes, &lam, w, v, ln_eps, &mut e) {
+        if !texel_values(
+            o.kernel, lobes, &lam, w, v, ln_eps, &mut g, &mut gc, &mut gl,
+        ) {
             continue;
         }
         let mut f = [-v[0], -v[1], -v[2]];
         for (k, l) in lobes.iter().enumerate() {
-            let g = e[k].exp();
             for c in 0..3 {
-                f[c] += l.a[c] * g;
+                f[c] += l.a[c] * g[k];
             }
         }
         let sw = t.sqrt_w[i];
@@ -296,25 +338,25 @@ pub(super) fn normal_equations(
     let (m, q) = (6 * n, 4 * n);
     let ln_eps = ln_epsilon(o);
     let lam: Vec<f64> = lobes.iter().map(|l| l.log_l.exp()).collect();
-    let (mut e, mut u) = (vec![0.0; n], vec![0.0; q]);
+    let (mut g, mut gc, mut gl, mut u) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; q]);
     let (mut uu, mut ru) = (vec![0.0; q * q], vec![0.0; 3 * q]);
     for i in 0..t.len() {
         let (w, v) = (t.dirs[i], t.values[i]);
-        if !texel_exponents(lobes, &lam, w, v, ln_eps, &mut e) {
+        if !texel_values(
+            o.kernel, lobes, &lam, w, v, ln_eps, &mut g, &mut gc, &mut gl,
+        ) {
             continue;
         }
         let sw = t.sqrt_w[i];
         let mut f = [-v[0], -v[1], -v[2]];
         for (k, l) in lobes.iter().enumerate() {
-            let g = e[k].exp();
             for c in 0..3 {
-                f[c] += l.a[c] * g;
+                f[c] += l.a[c] * g[k];
             }
-            let sg = sw * g;
-            u[4 * k] = sg;
-            u[4 * k + 1] = sg * lam[k] * dot(l.s, w);
-            u[4 * k + 2] = sg * lam[k] * dot(l.t, w);
-            u[4 * k + 3] = sg * e[k];
+            u[4 * k] = sw * g[k];
+            u[4 * k + 1] = sw * gc[k] * dot(l.s, w);
+            u[4 * k + 2] = sw * gc[k] * dot(l.t, w);
+            u[4 * k + 3] = sw * gl[k];
         }
         for a in 0..q {
             let ua = u[a];
@@ -499,6 +541,28 @@ pub(super) fn levenberg_marquardt(
 
 /// `I(lambda) = int exp(lambda (mu . w - 1)) dw = 2 pi (1 - exp(-2 lambda)) / lambda` and
 /// `lambda I'(lambda) = 4 pi exp(-2 lambda) - I(lambda)` (the energy term's Jacobian).
+/// The kernel's unit lobe of sharpness `lambda` at cosine `cos` to its axis, in f64.
+#[inline]
+pub(super) fn unit64(kernel: LobeKernel, lambda: f64, cos: f64) -> f64 {
+    match kernel {
+        LobeKernel::Gaussian => (lambda * (cos - 1.0)).exp(),
+        _ => kernel
+            .terms()
+            .iter()
+            .map(|&(c, w)| w as f64 * (c as f64 * lambda * (cos - 1.0)).exp())
+            .sum(),
+    }
+}
+
+/// [`unit_integral64`] of a kernel's unit lobe: `sum_j w_j I(c_j lambda)` and its
+/// `lambda d/dlambda` (module docs of [`crate::sg_kernel`]).
+pub(super) fn kernel_integral64(kernel: LobeKernel, lambda: f64) -> (f64, f64) {
+    kernel.terms().iter().fold((0.0, 0.0), |(i, d), &(c, w)| {
+        let (ij, dj) = unit_integral64(c as f64 * lambda);
+        (i + w as f64 * ij, d + w as f64 * dj)
+    })
+}
+
 pub(super) fn unit_integral64(lambda: f64) -> (f64, f64) {
     let two_pi = 2.0 * std::f64::consts::PI;
     let e = (-2.0 * lambda).exp();

@@ -4,6 +4,7 @@
 use super::lm::*;
 use super::*;
 use crate::sg::eval_mixture;
+use crate::sg_kernel::LobeKernel;
 use crate::Rng;
 
 fn target_of(n: usize, f: impl Fn(Vec3) -> Vec3) -> FitTarget {
@@ -60,8 +61,55 @@ fn recovers_known_mixtures_from_perturbed_starts() {
     }
 }
 
+/// A mixture of GGX-kernel lobes is recovered by the fit with that kernel; the Gaussian fit
+/// of the same data is far off (the kernels differ in their tails).
+#[test]
+fn recovers_ggx_kernel_mixtures() {
+    let kernel = LobeKernel::Ggx;
+    let o = FitOptions {
+        kernel,
+        ..FitOptions::default()
+    };
+    let mut rng = Rng::new(5, 2);
+    for k in 1..=2 {
+        let t = truth(k);
+        let target = target_of(24, |d| crate::sg_kernel::eval_mixture(kernel, &t, d));
+        let init: Vec<_> = t.iter().map(|g| perturb(g, &mut rng)).collect();
+        let f = refine(&target, &init, &o, None);
+        for (a, b) in f.lobes.iter().zip(&t) {
+            assert!(a.axis.angle_between(b.axis) < 1e-3, "{k}: {a:?} {b:?}");
+            assert!(
+                (a.sharpness / b.sharpness - 1.0).abs() < 1e-3,
+                "{a:?} {b:?}"
+            );
+        }
+        assert!(f.relative_error < 1e-4, "{}", f.relative_error);
+        let greedy = fit(&target, k, &o, None);
+        assert!(
+            greedy.relative_error < 1e-3,
+            "greedy {k}: {}",
+            greedy.relative_error
+        );
+        let gauss = fit(&target, k, &FitOptions::default(), None);
+        assert!(
+            gauss.relative_error > 0.05,
+            "gaussian {k}: {}",
+            gauss.relative_error
+        );
+    }
+}
+
 #[test]
 fn jacobian_matches_finite_differences() {
+    jacobian_matches_finite_differences_for(LobeKernel::Gaussian);
+}
+
+#[test]
+fn ggx_kernel_jacobian_matches_finite_differences() {
+    jacobian_matches_finite_differences_for(LobeKernel::Ggx);
+}
+
+fn jacobian_matches_finite_differences_for(kernel: LobeKernel) {
     let t = truth(2);
     let target = target_of(6, |d| eval_mixture(&t, d) + Vec3::splat(0.1 * d.x.max(0.0)));
     let mut rng = Rng::new(4, 4);
@@ -82,6 +130,7 @@ fn jacobian_matches_finite_differences() {
             weight: 0.2,
             integral: [0.9, 0.7, 0.5],
         }),
+        kernel,
         ..FitOptions::default()
     };
     let swapped = [t[1], t[0]];
@@ -332,4 +381,43 @@ fn energy_term_holds_the_integral_and_widens_a_lobe_for_heavy_tails() {
     // Sharpness 46 instead of 90 (measured): between the peak's 120 and the tails' 8.
     assert!(held.lobes[0].sharpness < 0.7 * free.lobes[0].sharpness);
     assert!(held.relative_error > free.relative_error);
+}
+
+/// GGX transport `D G / (4 cos_o)`-like (the NDF over `4 cos_o`, alpha 0.15, no shadowing
+/// term) for view `v` over normal `+y`.
+fn ggx_lobe(v: Vec3) -> impl Fn(Vec3) -> Vec3 {
+    let alpha2 = 0.15f32 * 0.15;
+    move |w: Vec3| {
+        if w.y <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let h = (w + v).normalize();
+        let d = alpha2 / (std::f32::consts::PI * (h.y * h.y * (alpha2 - 1.0) + 1.0).powi(2));
+        Vec3::new(1.0, 0.8, 0.6) * d / (4.0 * v.y)
+    }
+}
+
+/// Issue 10 item 3: one lobe of the GGX-shaped kernel ([`crate::sg_kernel`]) against one
+/// Gaussian on a GGX lobe. Measured (relative L2 error of the fit, 6x32x32 map): head-on
+/// 0.014 against 0.140, at 37 degrees 0.101 against 0.173; more kernel lobes never fit worse.
+#[test]
+fn one_ggx_kernel_lobe_fits_a_ggx_lobe_better_than_one_gaussian() {
+    for (v, ratio) in [(Vec3::Y, 0.2), (Vec3::new(0.6, 0.8, 0.0), 0.7)] {
+        let target = target_of(32, ggx_lobe(v));
+        let o = |kernel| FitOptions {
+            kernel,
+            lambda_max: 256.0,
+            ..FitOptions::default()
+        };
+        let gauss = fit(&target, 1, &o(LobeKernel::Gaussian), None).relative_error;
+        let mut last = f64::INFINITY;
+        for n in 1..=3 {
+            let e = fit(&target, n, &o(LobeKernel::Ggx), None).relative_error;
+            if n == 1 {
+                assert!(e < ratio * gauss, "{v}: ggx {e} gaussian {gauss}");
+            }
+            assert!(e <= last * (1.0 + 1e-9), "{v}: {n} lobes {e} > {last}");
+            last = e;
+        }
+    }
 }

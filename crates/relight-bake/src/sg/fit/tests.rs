@@ -85,6 +85,7 @@ fn config(lobes: usize) -> FitConfig {
             fit_start: FitStart::Neighbour,
             lobe_order: LobeOrder::Joint,
             lobe_shape: Default::default(),
+            lobe_kernel: Default::default(),
             regions: 0,
             // The recovery tests check the least-squares fit itself.
             energy: false,

@@ -7,8 +7,9 @@ use super::target::{group, CubeTables, ViewTarget};
 use crate::sg::SgFitSettings;
 use glam::Vec3;
 use relight_sphere::icosphere::Icosphere;
-use relight_sphere::sg::{unit_integral, SgLobe};
+use relight_sphere::sg::SgLobe;
 use relight_sphere::sg_fit::{self, Arrangement, EnergyTarget, FitOptions, PriorWeights};
+use relight_sphere::sg_kernel::LobeKernel;
 
 use crate::sg::{FitStart, LobeOrder, LobeShape};
 
@@ -51,6 +52,7 @@ impl ComponentFit {
                 lambda_max,
                 max_iterations: settings.max_iterations,
                 tolerance: 1e-3,
+                kernel: settings.lobe_kernel.kernel(),
                 ..FitOptions::default()
             },
             settings: *settings,
@@ -525,9 +527,9 @@ pub fn fit_alone(c: &ComponentFit, data: &[Vec3]) -> (Vec<SgLobe>, f64) {
 fn shape(c: &ComponentFit, lobes: &mut Vec<SgLobe>, t: &ViewTarget) {
     match c.settings.lobe_shape {
         LobeShape::LeastSquares => {
-            preserve_energy(lobes, t, c.opts.lambda_max);
+            preserve_energy(lobes, t, c.opts.lambda_max, c.opts.kernel);
             if c.settings.energy {
-                conserve_energy(lobes, t);
+                conserve_energy(lobes, t, c.opts.kernel);
             }
         }
         LobeShape::Moments => {
@@ -543,9 +545,9 @@ fn shape(c: &ComponentFit, lobes: &mut Vec<SgLobe>, t: &ViewTarget) {
 /// lobe), which shows as a uniformly too-dark render; with the integral matched a constant
 /// environment is rendered exactly and smooth lighting nearly so. The factor is bounded to
 /// `[1/4, 4]` so that a failed fit is not blown up.
-fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget) {
+fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, kernel: LobeKernel) {
     let have = lobes.iter().fold(Vec3::ZERO, |e, g| {
-        e + g.amplitude * unit_integral(g.sharpness)
+        e + g.amplitude * kernel.unit_integral(g.sharpness)
     });
     let ok = have.cmpgt(Vec3::splat(f32::MIN_POSITIVE)) & t.integral.cmpgt(Vec3::ZERO);
     let scale = Vec3::select(
@@ -563,14 +565,14 @@ fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget) {
 /// the least-squares amplitude of a too-broad lobe under-spreads a peak's energy (for a
 /// single-texel spike it is twice the energy-preserving one). A clamped lobe with a negligible
 /// share of the energy keeps its amplitude; the factor is capped at 4.
-fn preserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, lambda_max: f32) {
+fn preserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, lambda_max: f32, kernel: LobeKernel) {
     let at_bound = |g: &SgLobe| g.sharpness >= 0.999 * lambda_max;
     if !lobes.iter().any(at_bound) {
         return;
     }
     let (mut free, mut bound) = (Vec3::ZERO, Vec3::ZERO);
     for g in lobes.iter() {
-        let e = g.amplitude * unit_integral(g.sharpness);
+        let e = g.amplitude * kernel.unit_integral(g.sharpness);
         if at_bound(g) {
             bound += e;
         } else {
