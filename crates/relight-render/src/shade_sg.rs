@@ -15,7 +15,9 @@
 //!    is integrated against the lighting with one trilinear fetch of the Gaussian-prefiltered
 //!    cube chain (eq. 2.7, figure 3-2's shader):
 //!    `L_o = sum_k a_k unit_integral(lambda_k) P(R mu_k, lambda_k)` with `R = env_from_world`,
-//!    plus the Gouraud-interpolated diffuse radiance.
+//!    plus the Gouraud-interpolated diffuse radiance. A bake with the GGX-shaped lobe kernel
+//!    (`SgBake::kernel`, [`relight_sphere::sg_kernel`]) takes one such fetch per Gaussian term
+//!    of the kernel (four), and its energies use the kernel's integral.
 //!
 //! # Conventions
 //! * Lobes are [`SgLobe`]s `a exp(lambda (mu . w - 1))` with axes in the **world** frame in
