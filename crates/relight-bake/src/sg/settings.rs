@@ -135,6 +135,20 @@ impl SgBakeSettings {
                 self.direct_lobes
             ));
         }
+        if self.fit.lobe_kernel != super::SgKernel::Gaussian
+            && (self.direct_lobes > 1 || self.indirect_lobes > 1)
+        {
+            // Measured: 2 and 3 lobes of the GGX kernel are worse than 1 on Fig. 3-5 and on
+            // the sphere test scene (docs/RESULTS.md §8); more lobes must never be worse.
+            return err(format!(
+                "fit.lobe_kernel {} fits one lobe per component (direct_lobes {}, indirect_lobes {} \
+                 given): with more its renders can get worse (docs/RESULTS.md §8); use the \
+                 gaussian kernel for more lobes",
+                self.fit.lobe_kernel.kernel().name(),
+                self.direct_lobes,
+                self.indirect_lobes
+            ));
+        }
         if self.indirect_lobes > MAX_LOBES {
             return err(format!(
                 "indirect_lobes {} is not in 0..={MAX_LOBES}",
@@ -297,5 +311,25 @@ mod tests {
         assert!(e.contains("lobe_kernel gaussian"), "{e}");
         f.lobe_kernel = super::super::SgKernel::Gaussian;
         f.validate().unwrap();
+    }
+
+    /// The GGX kernel is for one lobe per component (more were measured worse).
+    #[test]
+    fn the_ggx_kernel_takes_one_lobe_per_component() {
+        let mut s = SgBakeSettings {
+            direct_lobes: 2,
+            ..SgBakeSettings::default()
+        };
+        s.fit.lobe_kernel = super::super::SgKernel::Ggx;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("fits one lobe per component") && e.contains("direct_lobes 2"),
+            "{e}"
+        );
+        s.direct_lobes = 1;
+        s.indirect_lobes = 2;
+        assert!(s.validate().is_err());
+        s.indirect_lobes = 1;
+        s.validate().unwrap();
     }
 }

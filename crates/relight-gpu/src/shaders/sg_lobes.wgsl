@@ -75,22 +75,9 @@ fn heaviest(w: vec3<f32>) -> u32 {
 
 // blend3: axes summed and renormalised, sharpness and amplitude linear.
 fn blend_linear(l0: Lobe, l1: Lobe, l2: Lobe, w: vec3<f32>) -> Lobe {
-    // blend3: a corner with an unused lobe (zero amplitude) weighs in the amplitude only.
-    let used = vec3<f32>(
-        select(0.0, 1.0, any(l0.amplitude.xyz != vec3<f32>(0.0))),
-        select(0.0, 1.0, any(l1.amplitude.xyz != vec3<f32>(0.0))),
-        select(0.0, 1.0, any(l2.amplitude.xyz != vec3<f32>(0.0))),
-    );
-    var u = w * used;
-    let s = u.x + u.y + u.z;
-    if (s > 0.0) {
-        u = u / s;
-    } else {
-        u = w;
-    }
     var axes = array<vec3<f32>, 3>(l0.axis_sharpness.xyz, l1.axis_sharpness.xyz, l2.axis_sharpness.xyz);
-    let axis = normalize_or(axes[0] * u.x + axes[1] * u.y + axes[2] * u.z, axes[heaviest(u)]);
-    let sharp = l0.axis_sharpness.w * u.x + l1.axis_sharpness.w * u.y + l2.axis_sharpness.w * u.z;
+    let axis = normalize_or(axes[0] * w.x + axes[1] * w.y + axes[2] * w.z, axes[heaviest(w)]);
+    let sharp = l0.axis_sharpness.w * w.x + l1.axis_sharpness.w * w.y + l2.axis_sharpness.w * w.z;
     let amp = l0.amplitude.xyz * w.x + l1.amplitude.xyz * w.y + l2.amplitude.xyz * w.z;
     return Lobe(vec4<f32>(axis, sharp), vec4<f32>(amp, 0.0));
 }

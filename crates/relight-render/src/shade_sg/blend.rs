@@ -44,28 +44,13 @@ pub enum LobeBlend {
 
 /// Blend three lobes with weights `w` (summing to 1): axes summed and renormalised,
 /// sharpness and amplitude linear (module docs). If the axes cancel, the axis of the
-/// heaviest corner is kept. A corner whose lobe is unused (zero amplitude: the fit had
-/// nothing for it, and its axis and sharpness are placeholders) lends its weight to the
-/// amplitude only: axis and sharpness are the other corners', renormalised (all three when
-/// every corner is unused).
+/// heaviest corner is kept.
 #[inline]
 pub fn blend3(l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe {
-    let used = |j: usize| l[j].amplitude != Vec3::ZERO;
-    let u = if used(0) || used(1) || used(2) {
-        let u = [0, 1, 2].map(|j| if used(j) { w[j] } else { 0.0 });
-        let s = u[0] + u[1] + u[2];
-        if s > 0.0 {
-            u.map(|x| x / s)
-        } else {
-            w
-        }
-    } else {
-        w
-    };
-    let axis = l[0].axis * u[0] + l[1].axis * u[1] + l[2].axis * u[2];
+    let axis = l[0].axis * w[0] + l[1].axis * w[1] + l[2].axis * w[2];
     SgLobe {
-        axis: axis.try_normalize().unwrap_or(l[heaviest(u)].axis),
-        sharpness: l[0].sharpness * u[0] + l[1].sharpness * u[1] + l[2].sharpness * u[2],
+        axis: axis.try_normalize().unwrap_or(l[heaviest(w)].axis),
+        sharpness: l[0].sharpness * w[0] + l[1].sharpness * w[1] + l[2].sharpness * w[2],
         amplitude: l[0].amplitude * w[0] + l[1].amplitude * w[1] + l[2].amplitude * w[2],
     }
 }
@@ -253,22 +238,11 @@ mod tests {
                 [w, 1.0 - w, 0.0],
             );
             assert!((b.sharpness - 500.0).abs() < 1e-3 && b.axis.dot(Vec3::Z) > 0.9999);
-            // The energy fades with the weight.
+            // The energy fades with the weight; the linear blend keeps almost all of it.
             let e = |l: &SgLobe| l.amplitude.x * unit_integral_f32(l.sharpness);
             assert!((e(&b) / e(&sharp) - w).abs() < 1e-4);
-            // So does the linear blend's: an unused lobe (zero amplitude) lends its corner's
-            // weight to the amplitude only, not its placeholder axis and sharpness (before
-            // 2026-12-03 the blend broadened towards them, 500 -> 500 w, and kept the energy).
             let lin = blend3([&sharp, &off, &off], [w, 1.0 - w, 0.0]);
-            assert!((lin.sharpness - 500.0).abs() < 1e-3 && lin.axis.dot(Vec3::Z) > 0.9999);
-            assert!(
-                (e(&lin) / e(&sharp) - w).abs() < 1e-4,
-                "{}",
-                e(&lin) / e(&sharp)
-            );
-            // Unused everywhere: the plain weights.
-            let none = blend3([&off, &off, &off], [w, 1.0 - w, 0.0]);
-            assert!(none.amplitude == Vec3::ZERO && (none.sharpness - 0.05).abs() < 1e-6);
+            assert!(e(&lin) / e(&sharp) > 0.99, "{}", e(&lin) / e(&sharp));
         }
     }
 

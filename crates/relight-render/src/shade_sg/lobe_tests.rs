@@ -237,23 +237,89 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
     );
 }
 
-/// Issue 10 item 3: the GGX-shaped lobe kernel (`--lobe-kernel ggx`, `relight_sphere::sg_kernel`)
-/// on the GGX sphere scene: each added lobe is no worse than one fewer, as with Gaussians.
-/// Measured 2026-12-03: 0.317, 0.314, 0.344 for 1, 2, 3 lobes, reference noise 0.037 (0.507
-/// at 3 lobes before unused lobes stopped steering the linear view blend, `blend3`). The
-/// kernel does not beat the Gaussian here (one lobe 0.305): this 16-texel scene's lobes sit
-/// at the sharpness bound (median 64), so the lobe's tails are not what limits it; the
-/// shape's gain is tested on the fit itself (`relight_sphere::sg_fit` tests,
+/// Issue 10 item 3: one lobe of the GGX-shaped kernel (`--lobe-kernel ggx`,
+/// `relight_sphere::sg_kernel`) on the GGX sphere scene, against one Gaussian lobe: no worse
+/// by more than the reference's noise. Measured 2026-12-03: 0.317 against 0.305, noise 0.037.
+/// The kernel does not win here: this 16-texel scene's lobes sit at the sharpness bound
+/// (median 64), so the lobe's tails are not what limits it. The shape's gain is tested on the
+/// fit itself (`relight_sphere::sg_fit` tests,
 /// `one_ggx_kernel_lobe_fits_a_ggx_lobe_better_than_one_gaussian`) and measured on the
-/// evaluation's scenes (docs/RESULTS.md §8).
+/// evaluation's scenes (docs/RESULTS.md §8). A frame that read the kernel's lobes wrongly
+/// (as Gaussians, or with the Gaussian's integral) is several noises off.
 #[test]
-fn ggx_kernel_lobes_are_never_worse() {
-    let ggx = bake_sg::SgFitSettings {
-        lobe_kernel: bake_sg::SgKernel::Ggx,
-        ..Default::default()
+fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
+    let scene = sphere_scene();
+    let caster = relight_scene::accel::build_default(&scene.mesh);
+    let (reference, variance) = pathtrace::render_with_variance(
+        &scene,
+        caster.as_ref(),
+        &PtSettings {
+            spp: 1024,
+            max_depth: 2,
+            seed: 7,
+            show_background: false,
+            ..PtSettings::default()
+        },
+    );
+    let lighting = SgLighting::new(&scene.env, 3, 128);
+    let render = |kernel: bake_sg::SgKernel| {
+        let settings = SgBakeSettings {
+            direct_res: 16,
+            direct_lobes: 1,
+            indirect_lobes: 0,
+            diffuse_order: 3,
+            fit: bake_sg::SgFitSettings {
+                lobe_kernel: kernel,
+                ..Default::default()
+            },
+            ..SgBakeSettings::default()
+        };
+        let bake = bake_sg::bake(
+            &scene.mesh,
+            &scene.materials,
+            None,
+            caster.as_ref(),
+            &settings,
+        )
+        .unwrap();
+        let (img, _) = SgRenderer::new(&scene.mesh, &bake).render(
+            &lighting,
+            &scene.camera,
+            None,
+            &RasterOptions { supersample: 4 },
+        );
+        (img, bake)
     };
-    let (errors, noise) = errors_by_lobes(&sphere_scene(), ggx, &[ShadeOptions::default()]);
-    let errors = &errors[0];
-    eprintln!("ggx kernel: relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
-    assert!(monotone(errors, noise), "{errors:?} (noise {noise})");
+    let (gauss, _) = render(bake_sg::SgKernel::Gaussian);
+    let mask = gauss.full_coverage_mask();
+    let err = |img: &Rendered| compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse;
+    let (ggx, mut bake) = render(bake_sg::SgKernel::Ggx);
+    let (mut var, mut sq) = (0f64, 0f64);
+    for ((v, p), &m) in variance.pixels.iter().zip(&reference.pixels).zip(&mask) {
+        if m {
+            var += v.element_sum() as f64;
+            sq += p.length_squared() as f64;
+        }
+    }
+    let noise = (var / sq).sqrt();
+    let (eg, ek) = (err(&gauss), err(&ggx));
+    eprintln!("one lobe: gaussian {eg:.4}, ggx kernel {ek:.4}, reference noise {noise:.4}");
+    assert!(
+        ek <= eg + noise,
+        "ggx kernel {ek} gaussian {eg} noise {noise}"
+    );
+    // Control: the same lobes read as Gaussians.
+    bake.kernel = relight_sphere::sg_kernel::LobeKernel::Gaussian;
+    let (wrong, _) = SgRenderer::new(&scene.mesh, &bake).render(
+        &lighting,
+        &scene.camera,
+        None,
+        &RasterOptions { supersample: 4 },
+    );
+    let ew = err(&wrong);
+    eprintln!("control, the kernel's lobes read as Gaussians: {ew:.4}");
+    assert!(
+        ew > ek + noise,
+        "control {ew} not off by the noise {noise} ({ek})"
+    );
 }
