@@ -5,6 +5,7 @@
 
 use super::*;
 use crate::compare;
+use crate::Image;
 use crate::pathtrace::{self, PtSettings};
 use relight_bake::sg::{self as bake_sg, SgBakeSettings};
 use relight_scene::scene::Scene;
@@ -107,17 +108,7 @@ fn errors_by_lobes(
     shades: &[ShadeOptions],
 ) -> (Vec<Vec<f64>>, f64) {
     let caster = relight_scene::accel::build_default(&scene.mesh);
-    let (reference, variance) = pathtrace::render_with_variance(
-        scene,
-        caster.as_ref(),
-        &PtSettings {
-            spp: 1024,
-            max_depth: 2,
-            seed: 7,
-            show_background: false,
-            ..PtSettings::default()
-        },
-    );
+    let (reference, variance) = reference(scene, caster.as_ref());
     let lighting = SgLighting::new(&scene.env, 3, 128);
     let mut errors = vec![vec![]; shades.len()];
     let mut mask = vec![];
@@ -154,15 +145,34 @@ fn errors_by_lobes(
             e.push(compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse);
         }
     }
-    // The reference's own relative noise over the same pixels (standard error of each pixel).
+    (errors, noise(&reference, &variance, &mask))
+}
+
+/// relight's path tracer, direct light (1,024 spp), and its per-pixel variance.
+fn reference(scene: &Scene, caster: &dyn relight_scene::accel::RayCaster) -> (Image, Image) {
+    pathtrace::render_with_variance(
+        scene,
+        caster,
+        &PtSettings {
+            spp: 1024,
+            max_depth: 2,
+            seed: 7,
+            show_background: false,
+            ..PtSettings::default()
+        },
+    )
+}
+
+/// The reference's own relative noise over the masked pixels (standard error of each pixel).
+fn noise(reference: &Image, variance: &Image, mask: &[bool]) -> f64 {
     let (mut var, mut sq) = (0f64, 0f64);
-    for ((v, p), &m) in variance.pixels.iter().zip(&reference.pixels).zip(&mask) {
+    for ((v, p), &m) in variance.pixels.iter().zip(&reference.pixels).zip(mask) {
         if m {
             var += v.element_sum() as f64;
             sq += p.length_squared() as f64;
         }
     }
-    (errors, (var / sq).sqrt())
+    (var / sq).sqrt()
 }
 
 /// Whether each added lobe is no worse than one lobe fewer: both errors are measured
@@ -250,17 +260,7 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
 fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
     let scene = sphere_scene();
     let caster = relight_scene::accel::build_default(&scene.mesh);
-    let (reference, variance) = pathtrace::render_with_variance(
-        &scene,
-        caster.as_ref(),
-        &PtSettings {
-            spp: 1024,
-            max_depth: 2,
-            seed: 7,
-            show_background: false,
-            ..PtSettings::default()
-        },
-    );
+    let (reference, variance) = reference(&scene, caster.as_ref());
     let lighting = SgLighting::new(&scene.env, 3, 128);
     let render = |kernel: bake_sg::SgKernel| {
         let settings = SgBakeSettings {
@@ -294,14 +294,7 @@ fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
     let mask = gauss.full_coverage_mask();
     let err = |img: &Rendered| compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse;
     let (ggx, mut bake) = render(bake_sg::SgKernel::Ggx);
-    let (mut var, mut sq) = (0f64, 0f64);
-    for ((v, p), &m) in variance.pixels.iter().zip(&reference.pixels).zip(&mask) {
-        if m {
-            var += v.element_sum() as f64;
-            sq += p.length_squared() as f64;
-        }
-    }
-    let noise = (var / sq).sqrt();
+    let noise = noise(&reference, &variance, &mask);
     let (eg, ek) = (err(&gauss), err(&ggx));
     eprintln!("one lobe: gaussian {eg:.4}, ggx kernel {ek:.4}, reference noise {noise:.4}");
     assert!(
