@@ -5,8 +5,8 @@
 
 use super::*;
 use crate::compare;
-use crate::Image;
 use crate::pathtrace::{self, PtSettings};
+use crate::Image;
 use relight_bake::sg::{self as bake_sg, SgBakeSettings};
 use relight_scene::scene::Scene;
 use relight_scene::shapes;
