@@ -10,7 +10,9 @@ anisotropic Gaussian of sharpness s/4 in the plane and s/(4 c^2) across it (c = 
 are placed in h and reflected exactly, each an isotropic lookup at the across-plane sharpness
 capped so that taps SPACING sigma apart leave no gaps (kappa times the in-plane sharpness).
 Printed per view: the relative RMS error of the tap rule over 40 rotations.
-relight's budget row "half-vector fit, 5 taps" is this rule with N = 5, SPACING = 1.5.
+relight's budget row "half-vector fit, 5 taps" is this rule with N = 5, SPACING = 1.5, plus a
+factor this script leaves out: each term weighted by its mean Jacobian 4 A(s) v.m,
+A(s) = coth s - 1/s (relight_eval::sg::budget::half_vector_taps).
 """
 import numpy as np, mitsuba as mi, sys
 mi.set_variant('scalar_rgb')
