@@ -200,6 +200,19 @@ fn half_vector_fit(
     (sum, lobes)
 }
 
+/// `A(s) = coth s - 1 / s`: the mean resultant length of a Gaussian `exp(s (m . h - 1))` on
+/// the sphere (its mean direction is `A(s) m`).
+fn mean_resultant(s: f32) -> f32 {
+    1.0 / s.tanh() - 1.0 / s
+}
+
+/// The environment's mean radiance under a normalised Gaussian of sharpness `lambda` about the
+/// world direction `dir` (one prefiltered lookup of `lighting`).
+fn prefiltered_mean(lighting: &SgLighting, dir: Vec3, lambda: f32) -> Vec3 {
+    let unit = SgLobe::new(lighting.env_from_world * dir, lambda, Vec3::ONE);
+    lighting.integrate(&unit) / LobeKernel::Gaussian.unit_integral(lambda)
+}
+
 /// Gauss-Hermite nodes and weights (normalised to sum 1) of the 5-point rule for a unit normal.
 const HERMITE5: [(f32, f32); 5] = [
     (0.0, 0.533_333_3),
@@ -238,16 +251,14 @@ fn half_vector_taps(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe],
             let (lx, ly) = (s / 4.0, s / (4.0 * c * c));
             let lp = ly.min(KAPPA * lx);
             let spread = (1.0 / lx - 1.0 / lp).max(0.0).sqrt();
-            // The Jacobian `4 v.h` is linear in `h`, and the term's mean `h` is `A(s) m`
-            // (`A(s) = coth s - 1 / s`, the mean resultant length of a Gaussian of sharpness
-            // `s` on the sphere), so its mean over the term is `4 A(s) c`; the taps' in-plane
+            // The Jacobian `4 v.h` is linear in `h` and the term's mean `h` is `A(s) m`
+            // ([`mean_resultant`]), so its mean over the term is `4 A(s) c`; the taps' in-plane
             // spread holds `sum w_i cos d_i` of that shrinkage, the rest is applied here.
-            let resultant = 1.0 / s.tanh() - 1.0 / s;
             let held: f32 = HERMITE5
                 .iter()
                 .map(|&(x, w)| w * (x * spread / 2.0).cos())
                 .sum();
-            let shrink = resultant / held;
+            let shrink = mean_resultant(s) / held;
             let mut acc = Vec3::ZERO;
             for (x, w) in HERMITE5 {
                 let d = x * spread / 2.0;
@@ -257,9 +268,7 @@ fn half_vector_taps(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe],
                     continue;
                 }
                 let wi = (2.0 * ci * h - v).normalize();
-                let unit = SgLobe::new(lighting.env_from_world * wi, lp, Vec3::ONE);
-                let mean = lighting.integrate(&unit) / LobeKernel::Gaussian.unit_integral(lp);
-                acc += mean * (w * 4.0 * ci * shrink);
+                acc += prefiltered_mean(lighting, wi, lp) * (w * 4.0 * ci * shrink);
             }
             total += term.amplitude * mass * acc;
         }
@@ -344,14 +353,8 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let view = (eye - p).normalize_or(nrm);
             let mut t = vec![Vec3::ZERO; 6 * res * res];
             ctx.direct_at(p, nrm, ng, &bake.materials[x], view, &mut t);
-            let sum: Vec3 = t
-                .iter()
-                .zip(&lbar)
-                .zip(solid)
-                .map(|((t, l), a)| *t * *l * *a)
-                .sum();
             let (lobes, _) = fit_alone(&fit, &t);
-            out[0] = sum;
+            out[0] = texel_sum(&lbar, solid, |i| t[i]);
             out[1] = integrate_world(&dense, bake.kernel, &lobes);
             let dirs = fit.tables.dirs();
             out[2] = texel_sum(&lbar, solid, |i| eval_mixture(bake.kernel, &lobes, dirs[i]));
@@ -478,9 +481,9 @@ fn blend_corners(
 }
 
 /// Shades every sample covered by the mesh (`SUPERSAMPLE`^2 per pixel) with `f(point,
-/// shading normal, geometric normal, nearest vertex, out)`, which writes two glossy
-/// radiances; the frame's diffuse part (Gouraud, as the frame) is added to both. Returns the
-/// two images, box filtered (uncovered samples count as black, as the frame without
+/// shading normal, geometric normal, nearest vertex, out)`, which writes `K` glossy
+/// radiances; the frame's diffuse part (Gouraud, as the frame) is added to each. Returns the
+/// `K` images, box filtered (uncovered samples count as black, as the frame without
 /// background).
 fn per_sample<const K: usize>(
     scene: &Scene,
@@ -654,11 +657,9 @@ mod tests {
                 .split(&lobe)
                 .map(|t| {
                     let s = t.sharpness;
-                    let lg = s / (4.0 * c);
-                    let unit = SgLobe::new(dense.env_from_world * w0, lg, Vec3::ONE);
-                    let mean = dense.integrate(&unit) / LobeKernel::Gaussian.unit_integral(lg);
-                    let resultant = 1.0 / s.tanh() - 1.0 / s;
-                    t.amplitude * LobeKernel::Gaussian.unit_integral(s) * 4.0 * c * resultant * mean
+                    let mean = prefiltered_mean(&dense, w0, s / (4.0 * c));
+                    let jacobian = 4.0 * c * mean_resultant(s);
+                    t.amplitude * LobeKernel::Gaussian.unit_integral(s) * jacobian * mean
                 })
                 .sum();
             let e_one = ((one - exact).abs() / exact).max_element();
