@@ -15,15 +15,10 @@ Printed per view: the fitted sharpness, the fit's relative L2 error, and the rel
 error of the lobe's integral against the exact one over 60 random rotations of the probe.
 (The kernel terms here are written as exp(-b lam x / 2); relight's are the same shape.)
 """
-import numpy as np, mitsuba as mi, sys
-mi.set_variant('scalar_rgb')
-env = np.array(mi.Bitmap(sys.argv[1]).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32))
-H, W, _ = env.shape
-lum = env @ np.array([0.2126, 0.7152, 0.0722])
-th = (np.arange(H) + 0.5) / H * np.pi; ph = (np.arange(W) + 0.5) / W * 2 * np.pi
-TH, PH = np.meshgrid(th, ph, indexing='ij')
-E = np.stack([np.sin(TH)*np.cos(PH), np.cos(TH), np.sin(TH)*np.sin(PH)], -1).reshape(-1,3)
-dA = (np.sin(TH) * (np.pi/H) * (2*np.pi/W)).reshape(-1); L = lum.reshape(-1)
+import sys
+import numpy as np
+from probe import load_probe, random_rotation
+E, dA, L = load_probe(sys.argv[1])
 # local fit grid: fibonacci sphere
 N = 40000; i = np.arange(N) + 0.5
 z = 1 - 2*i/N; r = np.sqrt(1-z*z); a = np.pi*(1+5**0.5)*i
@@ -71,9 +66,6 @@ def fit(kind, T, refl):
     scale = T.sum()/(amp*g).sum()
     return mu, lam, amp*scale, np.sqrt(err/(T*T).sum())
 rng = np.random.default_rng(1)
-def rand_rot():
-    q = rng.normal(size=4); q/=np.linalg.norm(q); a,b,c,d = q
-    return np.array([[a*a+b*b-c*c-d*d, 2*(b*c-a*d), 2*(b*d+a*c)],[2*(b*c+a*d), a*a-b*b+c*c-d*d, 2*(c*d-a*b)],[2*(b*d-a*c), 2*(c*d+a*b), a*a-b*b-c*c+d*d]])
 alpha = float(sys.argv[2])
 for tv in [0, 30, 45, 60, 75]:
     t = np.radians(tv); wo = np.array([np.sin(t), 0, np.cos(t)])
@@ -84,7 +76,7 @@ for tv in [0, 30, 45, 60, 75]:
     fits = {k: fit(k, T, refl) for k in ['sg', 'mix4', 'sgh', 'mix4h']}
     ex, ap = [], {k: [] for k in fits}
     for _ in range(60):
-        R = rand_rot()   # world_from_local
+        R = random_rotation(rng)   # world_from_local
         El = E @ R       # env directions in local frame
         Tl = ggx(alpha, wo, El)
         ex.append((L*Tl*dA).sum())

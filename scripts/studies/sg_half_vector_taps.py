@@ -14,15 +14,10 @@ relight's budget row "half-vector fit, 5 taps" is this rule with N = 5, SPACING 
 factor this script leaves out: each term weighted by its mean Jacobian 4 A(s) v.m,
 A(s) = coth s - 1/s (relight_eval::sg::budget::half_vector_taps).
 """
-import numpy as np, mitsuba as mi, sys
-mi.set_variant('scalar_rgb')
-env = np.array(mi.Bitmap(sys.argv[1]).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32))
-H, W, _ = env.shape
-lum = env @ np.array([0.2126, 0.7152, 0.0722])
-th = (np.arange(H) + 0.5) / H * np.pi; ph = (np.arange(W) + 0.5) / W * 2 * np.pi
-TH, PH = np.meshgrid(th, ph, indexing='ij')
-E = np.stack([np.sin(TH)*np.cos(PH), np.cos(TH), np.sin(TH)*np.sin(PH)], -1).reshape(-1,3)
-dA = (np.sin(TH) * (np.pi/H) * (2*np.pi/W)).reshape(-1); L = lum.reshape(-1)
+import sys
+import numpy as np
+from probe import load_probe, random_rotation
+E, dA, L = load_probe(sys.argv[1])
 b = np.array([2.04755,0.51189,0.12797,0.03199]); wk = np.array([0.71976,0.22641,0.0181,0.00184])
 lam = float(sys.argv[2]); N = int(sys.argv[3]); spacing = float(sys.argv[4])
 xs, ws = np.polynomial.hermite_e.hermegauss(N); ws = ws/ws.sum()
@@ -30,9 +25,6 @@ gap = np.min(np.diff(np.sort(xs))) if N > 1 else 1.0
 # iso blur width = gap*sigma/spacing; sigma^2 + blur^2 = 1/lx  ->  kappa = lambda'/lx
 kappa = (1 + (gap/spacing)**2)/(gap/spacing)**2 if N > 1 else 1.0
 rng = np.random.default_rng(1)
-def rand_rot():
-    q = rng.normal(size=4); q/=np.linalg.norm(q); a,b_,c,d = q
-    return np.array([[a*a+b_*b_-c*c-d*d, 2*(b_*c-a*d), 2*(b_*d+a*c)],[2*(b_*c+a*d), a*a-b_*b_+c*c-d*d, 2*(c*d-a*b_)],[2*(b_*d-a*c), 2*(c*d+a*b_), a*a-b_*b_-c*c+d*d]])
 def pre(El, r, lp):
     k = np.exp(lp*(El@r - 1))*dA
     return (L*k).sum()/k.sum()
@@ -43,7 +35,7 @@ for tv in [0, 30, 45, 60, 75, 85]:
     c = v@m
     ex, app = [], []
     for _ in range(40):
-        R = rand_rot(); El = E @ R
+        R = random_rotation(rng); El = E @ R
         h = El + v; h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-9)
         lobe = sum(wj*np.exp(-bj*lam*(1 - h@m)/2) for wj,bj in zip(wk,b))
         ex.append((L*lobe*dA).sum())
