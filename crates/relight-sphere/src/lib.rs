@@ -63,6 +63,7 @@ pub mod env_prefilter;
 pub mod env_sampler;
 pub mod envmap;
 pub mod haar;
+pub mod half_vector;
 pub mod icosphere;
 pub mod latlong;
 pub mod probe;

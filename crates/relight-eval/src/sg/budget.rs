@@ -21,7 +21,8 @@
 //! cube map with lobes in the half-vector domain ([`half_vector_fit`]), which the frame cannot
 //! render yet: what that representation would give (docs/RESULTS.md §8, session 25);
 //! `half-vector fit, 5 taps` integrates those lobes with prefiltered lookups as a frame would
-//! ([`half_vector_taps`]).
+//! ([`half_vector_taps`]), and `half-vector fit, warp table` does so with the tabulated
+//! Gaussians of `relight_sphere::half_vector` ([`half_vector_table`], session 26).
 //!
 //! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
 //! fit` on.
@@ -53,6 +54,7 @@ use relight_scene::camera::Camera;
 use relight_scene::scene::{Environment, Scene};
 use relight_sphere::cubemap::{texel_coords, texel_dir, texel_index, texel_solid_angle};
 use relight_sphere::env_prefilter::PrefilterLevel;
+use relight_sphere::half_vector;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sg_fit::{self, FitOptions, FitTarget};
@@ -276,6 +278,26 @@ fn half_vector_taps(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe],
     total
 }
 
+/// The study row `half-vector fit, warp table`: world-frame half-vector lobes
+/// ([`half_vector_fit`]) integrated with the tabulated isotropic Gaussians of
+/// [`relight_sphere::half_vector`] (five prefiltered lookups per Gaussian term, fitted once
+/// to the warped term over the sphere), as a frame would.
+fn half_vector_table(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe], v: Vec3) -> Vec3 {
+    let r = lighting.env_from_world;
+    let mut total = Vec3::ZERO;
+    for lobe in lobes.iter().filter(|l| l.amplitude != Vec3::ZERO) {
+        for term in kernel.split(lobe) {
+            total += half_vector::integrate_term(&term, v, |g| {
+                lighting.integrate(&SgLobe {
+                    axis: r * g.axis,
+                    ..*g
+                })
+            });
+        }
+    }
+    total
+}
+
 /// What [`run`] needs of an experiment.
 pub struct BudgetInput<'a> {
     /// Experiment name (rows).
@@ -348,7 +370,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let fit = ComponentFit::new(res, n, &settings.fit, &views);
     let lbar = texel_means(env, res);
     let (_, solid) = ctx.direct_texels();
-    let [tabulated, pixel_fit, texel_fit, half_fit, half_taps] =
+    let [tabulated, pixel_fit, texel_fit, half_fit, half_taps, half_table] =
         per_sample(scene, &prepared, |p, nrm, ng, x, out| {
             let view = (eye - p).normalize_or(nrm);
             let mut t = vec![Vec3::ZERO; 6 * res * res];
@@ -361,6 +383,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let (sum, half) = half_vector_fit(&fit, bake.kernel, &t, view, &lbar, solid);
             out[3] = sum;
             out[4] = half_vector_taps(&dense, bake.kernel, &half, view);
+            out[5] = half_vector_table(&dense, bake.kernel, &half, view);
         });
 
     // Fits at the vertices: at their exact views, and at the three nearest bake views.
@@ -421,6 +444,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
         ("pixel fit, texel sum", &texel_fit),
         ("half-vector fit, texel sum", &half_fit),
         ("half-vector fit, 5 taps", &half_taps),
+        ("half-vector fit, warp table", &half_table),
         ("vertex fit", &vertex_fit),
         ("view fits", &view_fits),
         ("bake", &baked),
