@@ -99,6 +99,9 @@ pub struct SgBake {
     /// The lobes' radial shape (the fit's [`SgFitSettings::lobe_kernel`]): every lobe of the
     /// bake is `a K(1 - mu . v; lambda)` ([`relight_sphere::sg_kernel`]).
     pub kernel: relight_sphere::sg_kernel::LobeKernel,
+    /// The lobes' variable (the fit's [`SgFitSettings::lobe_domain`]): the light direction
+    /// `w`, or the half vector `h(w) = normalize(w + v)` of the view the lobe is seen from.
+    pub domain: SgDomain,
 }
 
 impl SgBake {
@@ -140,6 +143,7 @@ impl SgBake {
             materials: vec![material; vc],
             stats: SgFitStats::default(),
             kernel: Default::default(),
+            domain: Default::default(),
         }
     }
 }
@@ -202,6 +206,22 @@ impl SgKernel {
             SgKernel::Ggx => LobeKernel::Ggx,
         }
     }
+}
+
+/// The variable of the fitted lobes (issue 10 item 3; [`relight_sphere::half_vector`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SgDomain {
+    /// `a K(1 - mu . w)` in the light direction `w` (Green 2005): every bake before this
+    /// setting existed.
+    #[default]
+    Light,
+    /// `a K(1 - mu . h(w))` in the half vector `h(w) = normalize(w + v)` of the view `v`: a
+    /// GGX lobe's own variable, so that one lobe follows the reflection's stretch along the
+    /// plane of incidence at grazing views. Rendered with five prefiltered lookups per
+    /// Gaussian term (`relight_sphere::half_vector`); one lobe per component.
+    HalfVector,
 }
 
 /// Where the flood fill starts the fit of a (vertex, view) in its first sweep (issue 10).
@@ -270,6 +290,11 @@ pub struct SgFitSettings {
     #[serde(default)]
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_kernel))]
     pub lobe_kernel: SgKernel,
+    /// The lobes' variable ([`SgDomain`]). Bundles written before this setting existed were
+    /// fitted in the light direction.
+    #[serde(default)]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_domain))]
+    pub lobe_domain: SgDomain,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]
     pub regions: usize,
@@ -550,5 +575,6 @@ fn assemble(
         materials: vm,
         stats: fitted.stats,
         kernel: settings.fit.lobe_kernel.kernel(),
+        domain: settings.fit.lobe_domain,
     }
 }

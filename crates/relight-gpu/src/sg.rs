@@ -39,6 +39,13 @@ pub(crate) struct SgGpuFrame<'a> {
 
 impl<'a> SgGpuFrame<'a> {
     pub fn new(gpu: &'a Gpu, baked: &'a SgBaked, s: &SgFrameSettings) -> Result<Self, GpuError> {
+        if baked.bake.domain != relight_bake::sg::SgDomain::Light {
+            return Err(GpuError::Unsupported(
+                "an sg bundle with lobes in the half-vector domain (--lobe-domain half-vector): \
+                 the GPU frame integrates light-domain lobes only; render it on the CPU"
+                    .to_string(),
+            ));
+        }
         let renderer =
             SgRenderer::new(&baked.scene.mesh, &baked.bake).with_options(s.shade_options());
         let mut up = 0;

@@ -446,6 +446,7 @@ fn from_part(p: SgPart, s: &SgBakeSettings) -> (SgBake, SgPartRows) {
             ..SgFitStats::default()
         },
         kernel: s.fit.lobe_kernel.kernel(),
+        domain: s.fit.lobe_domain,
     };
     let rows = SgPartRows {
         vertices: p.fit.vertices,

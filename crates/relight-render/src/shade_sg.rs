@@ -62,6 +62,7 @@ use crate::shade_sh;
 use glam::{Mat3, Vec3, Vec3A};
 use rayon::prelude::*;
 use relight_bake::sg::SgBake;
+use relight_bake::sg::SgDomain;
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
@@ -71,6 +72,7 @@ use relight_sphere::env_prefilter::{
     default_levels, prefilter_face, PrefilterLevel, PrefilterOptions, PrefilteredEnv, SourcePyramid,
 };
 use relight_sphere::envmap::{EnvLayout, EnvMap};
+use relight_sphere::half_vector;
 use relight_sphere::icosphere::Icosphere;
 use relight_sphere::sg::SgLobe;
 use relight_sphere::sg_kernel::LobeKernel;
@@ -386,6 +388,11 @@ pub struct SgFrame {
     pub lobes: Vec<SgLobe>,
     /// Diffuse radiance per vertex (albedo and view factor applied).
     pub diffuse: Vec<Vec3>,
+    /// The eye (world), for the per-pixel view of half-vector-domain lobes.
+    pub eye: Vec3,
+    /// The lighting's `env_from_world` (the lobes' axes are in the map frame; so is the view
+    /// a half-vector lobe is integrated for).
+    pub env_from_world: Mat3,
 }
 
 /// Where the time of one SG frame goes.
@@ -635,16 +642,25 @@ impl<'a> SgRenderer<'a> {
             lobe_count: n,
             lobes,
             diffuse,
+            eye,
+            env_from_world: r,
         }
     }
 
     /// Radiance of a fragment: per-pixel blend of its triangle's vertex lobes, each
-    /// integrated by `integrate` (axis in the map frame), plus the interpolated diffuse part.
+    /// integrated by `lobe_integral(lobe, v)` (axis and the fragment's view `v` in the map
+    /// frame), plus the interpolated diffuse part.
     #[inline]
-    fn shade(&self, frame: &SgFrame, f: &Fragment, integrate: impl Fn(&SgLobe) -> Vec3) -> Vec3 {
+    fn shade(
+        &self,
+        frame: &SgFrame,
+        f: &Fragment,
+        lobe_integral: impl Fn(&SgLobe, Vec3) -> Vec3,
+    ) -> Vec3 {
         let n = frame.lobe_count;
         let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
+        let v = frame.env_from_world * (frame.eye - f.position).normalize_or(f.shading_normal);
         let mut start = 0;
         for count in self.component_lobes() {
             let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);
@@ -658,11 +674,28 @@ impl<'a> SgRenderer<'a> {
                     f.bary,
                 );
                 if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
-                    sum += integrate(&lobe);
+                    sum += lobe_integral(&lobe, v);
                 }
             }
         }
         sum
+    }
+
+    /// `int a K L` of one blended lobe seen from `v` (map frame) through a Gaussian
+    /// integrator `gauss` (`int G L` of a Gaussian, axis in the map frame): one call per
+    /// Gaussian term of the kernel in the light domain; in the half-vector domain
+    /// ([`SgDomain::HalfVector`]) five per term, the tabulated Gaussians of
+    /// [`relight_sphere::half_vector`].
+    #[inline]
+    fn integrate_lobe(&self, lobe: &SgLobe, v: Vec3, gauss: impl Fn(&SgLobe) -> Vec3) -> Vec3 {
+        let kernel = self.bake.kernel;
+        match self.bake.domain {
+            SgDomain::Light => kernel.integrate_with(lobe, gauss),
+            SgDomain::HalfVector => kernel
+                .split(lobe)
+                .map(|t| half_vector::integrate_term(&t, v, &gauss))
+                .sum(),
+        }
     }
 
     /// One frame: [`SgRenderer::prepare`], then deferred per-pixel shading with prefiltered
@@ -678,8 +711,8 @@ impl<'a> SgRenderer<'a> {
         let frame = self.prepare(lighting, Vec3::from(camera.origin));
         let t1 = Instant::now();
         let img = raster::render_deferred(self.mesh, camera, background, opts, |f| {
-            self.shade(&frame, f, |l| {
-                lighting.integrate_kernel(self.bake.kernel, l)
+            self.shade(&frame, f, |l, v| {
+                self.integrate_lobe(l, v, |g| lighting.integrate(g))
             })
         });
         let t2 = Instant::now();
@@ -709,9 +742,8 @@ impl<'a> SgRenderer<'a> {
         assert_eq!(frame.lobe_count, self.lobe_count(), "lobes per vertex");
         assert_eq!(frame.lobes.len(), vc * frame.lobe_count, "lobes per vertex");
         assert_eq!(frame.diffuse.len(), vc, "diffuse per vertex");
-        let kernel = self.bake.kernel;
         raster::render_deferred(self.mesh, camera, None, opts, |f| {
-            self.shade(frame, f, |l| kernel.integrate_with(l, &integrate))
+            self.shade(frame, f, |l, v| self.integrate_lobe(l, v, &integrate))
         })
     }
 
@@ -728,9 +760,28 @@ impl<'a> SgRenderer<'a> {
         opts: &RasterOptions,
     ) -> Rendered {
         let frame = self.prepare(lighting, Vec3::from(camera.origin));
-        self.render_frame(&frame, camera, opts, |l| {
-            relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map) * env.scale
-        })
+        match self.bake.domain {
+            SgDomain::Light => self.render_frame(&frame, camera, opts, |l| {
+                relight_sphere::sg::integrate_with_env(std::slice::from_ref(l), &env.map)
+                    * env.scale
+            }),
+            SgDomain::HalfVector => {
+                // Each term `exp(s (m . h(w) - 1))` summed over the map's texels, exactly.
+                let texels: Vec<_> = env.map.texel_iter().collect();
+                let kernel = self.bake.kernel;
+                raster::render_deferred(self.mesh, camera, None, opts, |f| {
+                    self.shade(&frame, f, |l, v| {
+                        let mut acc = Vec3::ZERO;
+                        for t in &texels {
+                            let h = (t.dir + v).normalize_or_zero();
+                            acc +=
+                                t.value * (kernel.unit(l.sharpness, l.axis.dot(h)) * t.solid_angle);
+                        }
+                        acc * l.amplitude * env.scale
+                    })
+                })
+            }
+        }
     }
 }
 

@@ -109,14 +109,10 @@ fn tap_axis(m: Vec3, t: Vec3, theta_v: f32, offset: f32) -> Vec3 {
     m * psi.cos() + t * psi.sin()
 }
 
-/// The table's taps for a term of sharpness `s` seen at `c = v . m` (bilinear in `ln s` and
-/// `theta_v`, clamped to the grid; module docs), their weights scaled so that their integral
-/// is the bilinear interpolation of the entries' `s int g`, divided by `s`.
-///
-/// # Panics
-/// Debug builds assert `s > 0`.
-pub fn taps(s: f32, c: f32) -> [WarpTap; TAPS] {
-    debug_assert!(s > 0.0);
+/// Bilinear position in the table of `(s, c)`: the lower corner `(i0, j0)` and the weights
+/// `(ws, wt)` of the upper row and column (clamped to the grid).
+#[inline]
+fn locate(s: f32, c: f32) -> (usize, usize, f32, f32) {
     let theta = c.clamp(-1.0, 1.0).acos().to_degrees();
     let fs = ((s.ln() - LN_S_MIN) / LN_S_STEP).clamp(0.0, (S_COUNT - 1) as f32);
     let ft = (theta / THETA_STEP).clamp(0.0, (THETA_COUNT - 1) as f32);
@@ -124,12 +120,38 @@ pub fn taps(s: f32, c: f32) -> [WarpTap; TAPS] {
         (fs as usize).min(S_COUNT - 2),
         (ft as usize).min(THETA_COUNT - 2),
     );
-    let (ws, wt) = (fs - i0 as f32, ft - j0 as f32);
-    let e = |i: usize, j: usize| &table::TABLE[i * THETA_COUNT + j];
+    (i0, j0, fs - i0 as f32, ft - j0 as f32)
+}
+
+/// `int g(w) dw` of a term of sharpness `s` seen at `c = v . m`: the bilinear interpolation
+/// of the table's exact integrals (fitted by quadrature), 0 for `c <= 0` (as
+/// [`integrate_term`]). The energy of a half-vector lobe, used where the bake matches a
+/// fit's integral to its data's.
+///
+/// # Panics
+/// Debug builds assert `s > 0`.
+pub fn term_mass(s: f32, c: f32) -> f32 {
+    debug_assert!(s > 0.0);
+    if c <= 0.0 {
+        return 0.0;
+    }
+    let (i0, j0, ws, wt) = locate(s, c);
     let mass = |i: usize, j: usize| table::MASS[i * THETA_COUNT + j];
-    let m = ((mass(i0, j0) * (1.0 - wt) + mass(i0, j0 + 1) * wt) * (1.0 - ws)
+    ((mass(i0, j0) * (1.0 - wt) + mass(i0, j0 + 1) * wt) * (1.0 - ws)
         + (mass(i0 + 1, j0) * (1.0 - wt) + mass(i0 + 1, j0 + 1) * wt) * ws)
-        / s;
+        / s
+}
+
+/// The table's taps for a term of sharpness `s` seen at `c = v . m` (bilinear in `ln s` and
+/// `theta_v`, clamped to the grid; module docs), their weights scaled so that their integral
+/// is [`term_mass`].
+///
+/// # Panics
+/// Debug builds assert `s > 0`.
+pub fn taps(s: f32, c: f32) -> [WarpTap; TAPS] {
+    debug_assert!(s > 0.0);
+    let (i0, j0, ws, wt) = locate(s, c);
+    let e = |i: usize, j: usize| &table::TABLE[i * THETA_COUNT + j];
     let mut out: [WarpTap; TAPS] = std::array::from_fn(|k| {
         let mut u = [0.0f32; 3];
         for (q, uq) in u.iter_mut().enumerate() {
@@ -141,6 +163,7 @@ pub fn taps(s: f32, c: f32) -> [WarpTap; TAPS] {
     });
     // Interpolated parameters do not keep the interpolated integral exactly (up to 5.6 %
     // at grazing views): the weights are renormalised to it.
+    let m = term_mass(s, c.max(1e-6));
     let model: f32 = out
         .iter()
         .map(|t| t.weight * unit_integral(t.sharpness))

@@ -32,7 +32,8 @@
 //!   [`sh::rotate`] (rotation of any order) and [`sh::project`] (exact latlong projection);
 //!   [`sh_product`]: triple-product tensor; [`basis`]: the [`basis::SphericalBasis`] trait;
 //! * [`decompose`]: environment = SH part + cap lights (hybrid thesis 4.3);
-//! * [`sg`], [`sg_fit`]: spherical Gaussians and their Levenberg-Marquardt fitter; [`vmf`]:
+//! * [`sg`], [`sg_fit`]: spherical Gaussians and their Levenberg-Marquardt fitter;
+//!   [`half_vector`]: lobes in the half-vector domain and their tabulated integration; [`vmf`]:
 //!   von Mises-Fisher lobes (stable normaliser, L2 distance, sampling, EM estimation);
 //! * [`warp`]: sample warps, low-discrepancy points, the [`Rng`]; [`quadrature`]: Gauss-Legendre.
 //!

@@ -121,6 +121,16 @@ impl FitTarget {
         FitTarget::new(&d, &w, &v)
     }
 
+    /// Replaces every direction `d` by `f(d)` (a unit vector), keeping weights and values:
+    /// the same L2 objective over the original directions, with the model evaluated at the
+    /// mapped ones (lobes in the half-vector domain, [`crate::half_vector`]).
+    pub fn map_dirs(&mut self, f: impl Fn(Vec3) -> Vec3) {
+        for d in &mut self.dirs {
+            let m = f(Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32)).normalize();
+            *d = [m.x as f64, m.y as f64, m.z as f64];
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.dirs.len()

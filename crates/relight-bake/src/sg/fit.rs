@@ -443,6 +443,11 @@ fn fill_region<S: TransportSource + ?Sized>(
                     data: component_data(&buf, ci),
                     warm: parent.map(|j| &done[j].lobes[..]),
                     spatial: &spatial,
+                    views: if buf.view_dirs.len() == c.views() {
+                        &buf.view_dirs
+                    } else {
+                        &c.view_dirs
+                    },
                     relax: None,
                 },
             );
@@ -486,6 +491,10 @@ fn relax_vertex(
             data,
             warm: Some(&warm),
             spatial: &spatial,
+            // Relaxation only runs with flips, i.e. two or more lobes: light domain only
+            // (settings refuse more than one half-vector lobe), so the views are the
+            // icosahedron's.
+            views: &c.fit.view_dirs,
             relax: Some(mask),
         },
     )

@@ -35,6 +35,7 @@ impl Default for SgFitSettings {
             lobe_order: super::LobeOrder::default(),
             lobe_shape: super::LobeShape::default(),
             lobe_kernel: super::SgKernel::default(),
+            lobe_domain: super::SgDomain::default(),
             regions: 0,
             energy: true,
         }
@@ -148,6 +149,22 @@ impl SgBakeSettings {
                 self.direct_lobes,
                 self.indirect_lobes
             ));
+        }
+        if self.fit.lobe_domain == super::SgDomain::HalfVector {
+            // One lobe per component is what was measured (docs/RESULTS.md §8, session 26);
+            // the moments shape is a light-domain construction.
+            if self.direct_lobes > 1 || self.indirect_lobes > 1 {
+                return err(format!(
+                    "fit.lobe_domain half-vector fits one lobe per component (direct_lobes {}, \
+                     indirect_lobes {} given); use the light domain for more lobes",
+                    self.direct_lobes, self.indirect_lobes
+                ));
+            }
+            if self.fit.lobe_shape != super::LobeShape::LeastSquares {
+                return err(
+                    "fit.lobe_domain half-vector needs fit.lobe_shape least-squares".to_string(),
+                );
+            }
         }
         if self.indirect_lobes > MAX_LOBES {
             return err(format!(

@@ -45,6 +45,9 @@ pub struct VertexTransport {
     /// Per view: `true` if the view is above the clamping elevation, `false` if its data is
     /// that of the clamped view.
     pub view_visible: Vec<bool>,
+    /// Per view: the direction whose transport the view holds (the view, or the clamped
+    /// view; [`TransportContext::view_direction`]). Empty: the icosahedron's views.
+    pub view_dirs: Vec<Vec3>,
     /// Direct glossy, `direct[view * 6 * direct_res^2 + texel]`, RGB, per steradian.
     pub direct: Vec<Vec3>,
     /// Indirect glossy, `indirect[view * 6 * indirect_res^2 + texel]` (empty when disabled).
@@ -579,6 +582,9 @@ impl TransportSource for TransportContext<'_> {
         let (td, ti) = (self.direct.len(), self.indirect.len());
         out.view_visible.clear();
         out.view_visible.resize(nv, false);
+        out.view_dirs.clear();
+        out.view_dirs
+            .extend((0..nv).map(|v| self.view_direction(x, v).0));
         // The direct cube maps are overwritten texel by texel below (zeroing 6.8 MB first
         // would cost as much as the kernel); resized only when the shape changes.
         if out.direct.len() != nv * td {

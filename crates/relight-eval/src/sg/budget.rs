@@ -325,10 +325,19 @@ pub struct BudgetInput<'a> {
 /// `budget_l<N>_<row>.exr` in the experiment's folder.
 ///
 /// # Errors
-/// Mitsuba, ray-caster or write failures.
+/// Mitsuba, ray-caster or write failures; a half-vector-domain bake (the rows fit and
+/// integrate lobes in the light domain).
 pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let scene = b.scene;
     let bake = &b.baked.bake;
+    if bake.domain != relight_bake::sg::SgDomain::Light {
+        return Err(relight_method::MethodError::Settings(
+            "the sg error budget (--budget) needs a light-domain bake: its rows fit and \
+             integrate lobes in the light direction (the half-vector rows are its study rows)"
+                .to_string(),
+        )
+        .into());
+    }
     let n = bake.direct.lobe_count;
     let owned;
     let reference = match b.direct_reference {
@@ -375,7 +384,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let view = (eye - p).normalize_or(nrm);
             let mut t = vec![Vec3::ZERO; 6 * res * res];
             ctx.direct_at(p, nrm, ng, &bake.materials[x], view, &mut t);
-            let (lobes, _) = fit_alone(&fit, &t);
+            let (lobes, _) = fit_alone(&fit, &t, view);
             out[0] = texel_sum(&lbar, solid, |i| t[i]);
             out[1] = integrate_world(&dense, bake.kernel, &lobes);
             let dirs = fit.tables.dirs();
@@ -397,7 +406,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let g = ctx.geometric_normal(x);
             let fit_view = |t: &mut Vec<Vec3>, v: Vec3| {
                 ctx.direct_at(p, mesh.normals[x], g, m, v, t);
-                fit_alone(&fit, t).0
+                fit_alone(&fit, t, v).0
             };
             let view = (eye - p).normalize_or(mesh.normals[x]);
             let exact = fit_view(t, view);
@@ -423,6 +432,8 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
         lobe_count: n,
         lobes: vertex_frames.iter().flat_map(|f| f[i].clone()).collect(),
         diffuse: prepared.diffuse.clone(),
+        eye: prepared.eye,
+        env_from_world: prepared.env_from_world,
     };
     let integrate = |l: &SgLobe| dense.integrate(l);
     let vertex_fit = renderer
@@ -633,7 +644,7 @@ mod tests {
         let exact = texel_sum(&lbar, solid, |i| t[i]);
         let (half, _) = half_vector_fit(&fit, kernel, &t, view, &lbar, solid);
         let e_half = ((half - exact).abs() / exact).max_element();
-        let (lobes, _) = fit_alone(&fit, &t);
+        let (lobes, _) = fit_alone(&fit, &t, view);
         let plain = texel_sum(&lbar, solid, |i| eval_mixture(kernel, &lobes, dirs[i]));
         let e_plain = ((plain - exact).abs() / exact).max_element();
         assert!(e_half < 0.02, "half-vector fit off by {e_half}");

@@ -266,6 +266,7 @@ pub(super) fn load(b: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
                 flips_after_relaxation: stats.flips_after_relaxation,
             },
             kernel: settings.bake.fit.lobe_kernel.kernel(),
+            domain: settings.bake.fit.lobe_domain,
         },
         settings,
         record,

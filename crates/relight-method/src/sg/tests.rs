@@ -101,6 +101,7 @@ fn baked(f16: bool) -> SgBaked {
                 flips_after_relaxation: 1,
             },
             kernel: settings.bake.fit.lobe_kernel.kernel(),
+            domain: settings.bake.fit.lobe_domain,
         },
         settings,
         record: BakeRecord {

@@ -318,3 +318,72 @@ fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
         "control {ew} not off by the noise {noise} ({ek})"
     );
 }
+
+/// Issue 10 item 3: one GGX-kernel lobe in the half-vector domain (`--lobe-domain
+/// half-vector`) against one in the light domain, both through the frame (prefiltered chain,
+/// the tabulated Gaussians of `relight_sphere::half_vector` for the former). Control: the
+/// half-vector bake's lobes read as light-domain lobes.
+#[test]
+fn one_half_vector_lobe_is_no_worse_than_one_light_domain_lobe() {
+    let scene = sphere_scene();
+    let caster = relight_scene::accel::build_default(&scene.mesh);
+    let (reference, variance) = reference(&scene, caster.as_ref());
+    let lighting = SgLighting::new(&scene.env, 3, 128);
+    let opts = RasterOptions { supersample: 4 };
+    let render = |domain: bake_sg::SgDomain| {
+        let settings = SgBakeSettings {
+            direct_res: 16,
+            direct_lobes: 1,
+            indirect_lobes: 0,
+            diffuse_order: 3,
+            fit: bake_sg::SgFitSettings {
+                lobe_kernel: bake_sg::SgKernel::Ggx,
+                lobe_domain: domain,
+                ..Default::default()
+            },
+            ..SgBakeSettings::default()
+        };
+        let bake = bake_sg::bake(
+            &scene.mesh,
+            &scene.materials,
+            None,
+            caster.as_ref(),
+            &settings,
+        )
+        .unwrap();
+        let (img, _) =
+            SgRenderer::new(&scene.mesh, &bake).render(&lighting, &scene.camera, None, &opts);
+        (img, bake)
+    };
+    let (light, _) = render(bake_sg::SgDomain::Light);
+    let mask = light.full_coverage_mask();
+    let err = |img: &Rendered| compare::metrics(&img.image, &reference, Some(&mask)).rel_rmse;
+    let (half, mut bake) = render(bake_sg::SgDomain::HalfVector);
+    let noise = noise(&reference, &variance, &mask);
+    let (el, eh) = (err(&light), err(&half));
+    eprintln!("one ggx-kernel lobe: light domain {el:.4}, half-vector domain {eh:.4}, reference noise {noise:.4}");
+    assert!(
+        eh <= el + noise,
+        "half-vector {eh} light {el} noise {noise}"
+    );
+    // The fast path against the slow reference of the same lobes (each term summed over the
+    // map's texels): the tabulated Gaussians and the prefiltered chain.
+    let slow = SgRenderer::new(&scene.mesh, &bake).render_reference(
+        &lighting,
+        &scene.env,
+        &scene.camera,
+        &opts,
+    );
+    let es = compare::metrics(&half.image, &slow.image, Some(&mask)).rel_rmse;
+    eprintln!("half-vector frame against its texel-sum reference: {es:.4}");
+    assert!(es < 0.05, "{es}");
+    bake.domain = bake_sg::SgDomain::Light;
+    let (wrong, _) =
+        SgRenderer::new(&scene.mesh, &bake).render(&lighting, &scene.camera, None, &opts);
+    let ew = err(&wrong);
+    eprintln!("control, the half-vector lobes read in the light domain: {ew:.4}");
+    assert!(
+        ew > eh + noise,
+        "control {ew} not off by the noise {noise} ({eh})"
+    );
+}

@@ -88,6 +88,21 @@ pub struct ViewTarget {
     pub norm2: f64,
     /// `sum dA T`, the data's integral per channel (exact, grouping preserves it).
     pub integral: Vec3,
+    /// The view whose half vectors the target's directions are ([`ViewTarget::to_half_vector`]),
+    /// `None` in the light domain.
+    pub view: Option<Vec3>,
+}
+
+impl ViewTarget {
+    /// Moves the target to the half-vector domain of the view `v` (issue 10 item 3,
+    /// `relight_sphere::half_vector`): every direction `w` becomes `h = normalize(w + v)`,
+    /// weights and values unchanged, so the objective is still the L2 distance over `w` with
+    /// the model evaluated at `h(w)`. The one direction with no half vector, `w = -v`, maps
+    /// to `v` (a set of measure zero).
+    pub fn to_half_vector(&mut self, v: Vec3) {
+        self.target.map_dirs(|w| (w + v).normalize_or(v));
+        self.view = Some(v);
+    }
 }
 
 /// Groups one view's data (`6 n^2` texels) into texels and cells (module docs).
@@ -147,6 +162,7 @@ pub fn group(tables: &CubeTables, data: &[Vec3]) -> ViewTarget {
         norm2: target.norm2(),
         target,
         integral: Vec3::new(integral[0] as f32, integral[1] as f32, integral[2] as f32),
+        view: None,
     }
 }
 

@@ -468,6 +468,7 @@ fn degenerate_neighbourhoods_are_fitted_without_the_spatial_term() {
                 data: &buf.direct,
                 warm: None,
                 spatial: &[],
+                views: &comp.view_dirs,
                 relax: None,
             },
         );
@@ -571,6 +572,7 @@ fn energy_conservation_matches_the_data_integral() {
             data: &data,
             warm: None,
             spatial: &[],
+            views: &c.view_dirs,
             relax: None,
         };
         let fit = fit_vertex(&c, &input);

@@ -11,7 +11,8 @@ use relight_sphere::sg::SgLobe;
 use relight_sphere::sg_fit::{self, Arrangement, EnergyTarget, FitOptions, PriorWeights};
 use relight_sphere::sg_kernel::LobeKernel;
 
-use crate::sg::{FitStart, LobeOrder, LobeShape};
+use crate::sg::{FitStart, LobeOrder, LobeShape, SgDomain};
+use relight_sphere::half_vector;
 
 /// A warm start whose fit leaves more than this relative L2 error is checked against a greedy
 /// fit from scratch (the warm start may sit in another basin, e.g. across a shadow boundary).
@@ -34,16 +35,25 @@ pub struct ComponentFit {
     pub settings: SgFitSettings,
     /// Neighbouring views of each view (the frequency-3 icosahedron).
     pub view_neighbours: Vec<Vec<usize>>,
+    /// The views' directions (the icosahedron's vertices): the half-vector domain's views
+    /// where a source does not say which direction its data holds.
+    pub view_dirs: Vec<Vec3>,
 }
 
 impl ComponentFit {
     /// The fit of a component on an `n x n`-per-face cube map with `lobes` lobes per view.
     ///
     /// The sharpness is bounded by `(n / 2)^2`, the finest lobe the cube map resolves (a
-    /// standard deviation of about one texel, `sg_fit::FitOptions::lambda_max`).
+    /// standard deviation of about one texel, `sg_fit::FitOptions::lambda_max`); four times
+    /// that in the half-vector domain, where a lobe of sharpness `lambda` is about
+    /// `lambda / 4` wide in `w` (`w` turns twice as fast as `h`).
     pub fn new(n: usize, lobes: usize, settings: &SgFitSettings, views: &Icosphere) -> Self {
         debug_assert!(n >= 1 && (1..=10).contains(&lobes));
-        let lambda_max = ((n as f32 / 2.0).powi(2)).max(1.0);
+        let domain_scale = match settings.lobe_domain {
+            SgDomain::Light => 1.0,
+            SgDomain::HalfVector => 4.0,
+        };
+        let lambda_max = ((n as f32 / 2.0).powi(2)).max(1.0) * domain_scale;
         ComponentFit {
             tables: CubeTables::new(n),
             lobes,
@@ -59,7 +69,18 @@ impl ComponentFit {
             view_neighbours: (0..views.vertices().len())
                 .map(|v| views.neighbours(v).iter().map(|&u| u as usize).collect())
                 .collect(),
+            view_dirs: views.vertices().to_vec(),
         }
+    }
+
+    /// Groups one view's data ([`group`]) and, in the half-vector domain, moves it to the
+    /// half vectors of `view` (the direction the data was computed for).
+    pub fn view_target(&self, data: &[Vec3], view: Vec3) -> ViewTarget {
+        let mut t = group(&self.tables, data);
+        if self.settings.lobe_domain == SgDomain::HalfVector {
+            t.to_half_vector(view);
+        }
+        t
     }
 
     /// Number of views.
@@ -195,6 +216,8 @@ pub struct VertexInput<'a> {
     pub warm: Option<&'a [SgLobe]>,
     /// The lobes (`views * lobes` each) of the neighbouring vertices of the spatial term.
     pub spatial: &'a [&'a [SgLobe]],
+    /// The direction each view's data was computed for (the half-vector domain's views).
+    pub views: &'a [Vec3],
     /// Relaxation: `warm` already holds a complete, matched fit; refit only the views whose
     /// bit is set in this mask (view `v` is bit `v`), in one sweep.
     pub relax: Option<u128>,
@@ -209,7 +232,10 @@ pub fn fit_vertex(c: &ComponentFit, input: &VertexInput) -> VertexFit {
     let active = |v: usize| input.relax.is_none_or(|m| m >> v & 1 == 1);
     // Only the views being fitted are grouped (a relaxation refits few).
     let targets: Vec<Option<ViewTarget>> = (0..nv)
-        .map(|v| active(v).then(|| group(&c.tables, &input.data[v * texels..(v + 1) * texels])))
+        .map(|v| {
+            active(v)
+                .then(|| c.view_target(&input.data[v * texels..(v + 1) * texels], input.views[v]))
+        })
         .collect();
     let order: Vec<usize> = view_order(c, &targets)
         .into_iter()
@@ -396,10 +422,13 @@ fn weighted_options(c: &ComponentFit, t: &ViewTarget) -> FitOptions {
 }
 
 /// The energy term of a view (`SgFitSettings::energy_weight`, relative to its data energy
-/// and integral), if on and the view has a non-zero integral.
+/// and integral), if on, the view has a non-zero integral and it is in the light domain.
 fn energy_target(c: &ComponentFit, t: &ViewTarget) -> Option<EnergyTarget> {
     let e2 = t.integral.length_squared() as f64;
-    (c.settings.energy_weight > 0.0 && e2 > 0.0 && t.norm2 > 0.0).then(|| EnergyTarget {
+    // The solver's energy term integrates lobes in the light domain; a half-vector fit keeps
+    // its energy by the rescaling after the fit only ([`conserve_energy`]).
+    let light = t.view.is_none();
+    (light && c.settings.energy_weight > 0.0 && e2 > 0.0 && t.norm2 > 0.0).then(|| EnergyTarget {
         weight: c.settings.energy_weight * t.norm2 / e2,
         integral: [
             t.integral.x as f64,
@@ -506,9 +535,10 @@ fn solve_view(
 /// Fits one view's data (`6 n^2` texels) on its own: the greedy fit of `sg_fit::fit` with no
 /// coherence term, then the same energy handling as the flood fill. Returns the lobes and
 /// the relative L2 error. The reference the flood fill is measured against in the error
-/// budget (per-pixel and exact-view rows of docs/RESULTS.md §8).
-pub fn fit_alone(c: &ComponentFit, data: &[Vec3]) -> (Vec<SgLobe>, f64) {
-    let t = group(&c.tables, data);
+/// budget (per-pixel and exact-view rows of docs/RESULTS.md §8). `view` is the direction the
+/// data was computed for (used in the half-vector domain).
+pub fn fit_alone(c: &ComponentFit, data: &[Vec3], view: Vec3) -> (Vec<SgLobe>, f64) {
+    let t = c.view_target(data, view);
     if t.norm2 <= 0.0 {
         return (vec![c.default_lobe(); c.lobes], 0.0);
     }
@@ -546,9 +576,9 @@ fn shape(c: &ComponentFit, lobes: &mut Vec<SgLobe>, t: &ViewTarget) {
 /// environment is rendered exactly and smooth lighting nearly so. The factor is bounded to
 /// `[1/4, 4]` so that a failed fit is not blown up.
 fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, kernel: LobeKernel) {
-    let have = lobes.iter().fold(Vec3::ZERO, |e, g| {
-        e + g.amplitude * kernel.unit_integral(g.sharpness)
-    });
+    let have = lobes
+        .iter()
+        .fold(Vec3::ZERO, |e, g| e + lobe_integral(kernel, t, g));
     let ok = have.cmpgt(Vec3::splat(f32::MIN_POSITIVE)) & t.integral.cmpgt(Vec3::ZERO);
     let scale = Vec3::select(
         ok,
@@ -557,6 +587,22 @@ fn conserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, kernel: LobeKernel) {
     );
     for g in lobes.iter_mut() {
         g.amplitude *= scale;
+    }
+}
+
+/// `int g(w) dw` of a fitted lobe over the light directions: `a unit_integral(lambda)` in the
+/// light domain; in the half-vector domain of view `v`, the integral of each Gaussian term
+/// `exp(s (m . h(w) - 1))` over `w` ([`half_vector::term_mass`]).
+fn lobe_integral(kernel: LobeKernel, t: &ViewTarget, g: &SgLobe) -> Vec3 {
+    match t.view {
+        None => g.amplitude * kernel.unit_integral(g.sharpness),
+        Some(v) => {
+            let c = v.dot(g.axis);
+            kernel
+                .split(g)
+                .map(|term| term.amplitude * half_vector::term_mass(term.sharpness, c))
+                .sum()
+        }
     }
 }
 
@@ -572,7 +618,7 @@ fn preserve_energy(lobes: &mut [SgLobe], t: &ViewTarget, lambda_max: f32, kernel
     }
     let (mut free, mut bound) = (Vec3::ZERO, Vec3::ZERO);
     for g in lobes.iter() {
-        let e = g.amplitude * kernel.unit_integral(g.sharpness);
+        let e = lobe_integral(kernel, t, g);
         if at_bound(g) {
             bound += e;
         } else {
