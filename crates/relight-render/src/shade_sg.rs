@@ -17,7 +17,13 @@
 //!    `L_o = sum_k a_k unit_integral(lambda_k) P(R mu_k, lambda_k)` with `R = env_from_world`,
 //!    plus the Gouraud-interpolated diffuse radiance. A bake with the GGX-shaped lobe kernel
 //!    (`SgBake::kernel`, [`relight_sphere::sg_kernel`]) takes one such fetch per Gaussian term
-//!    of the kernel (four), and its energies use the kernel's integral.
+//!    of the kernel (four), and its energies use the kernel's integral. A bake in the
+//!    **half-vector domain** (`SgBake::domain`, `--lobe-domain half-vector`; issue 10 item 3)
+//!    has lobes `a K(1 - mu . h(w))`, `h(w) = normalize(w + v)`: each Gaussian term is
+//!    integrated for the fragment's own view `v = normalize(eye - x)` with the five tabulated
+//!    isotropic Gaussians of [`relight_sphere::half_vector`] (five fetches per term, twenty
+//!    per GGX-kernel lobe); blending is unchanged (a half-vector lobe's axis stays near the
+//!    normal from view to view).
 //!
 //! # Conventions
 //! * Lobes are [`SgLobe`]s `a exp(lambda (mu . w - 1))` with axes in the **world** frame in

@@ -349,4 +349,25 @@ mod tests {
         s.indirect_lobes = 1;
         s.validate().unwrap();
     }
+
+    /// The half-vector domain is for one lobe per component, least-squares shape.
+    #[test]
+    fn the_half_vector_domain_takes_one_least_squares_lobe() {
+        let mut s = SgBakeSettings {
+            direct_lobes: 2,
+            ..SgBakeSettings::default()
+        };
+        s.fit.lobe_domain = super::super::SgDomain::HalfVector;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("half-vector") && e.contains("direct_lobes 2"),
+            "{e}"
+        );
+        s.direct_lobes = 1;
+        s.fit.lobe_shape = super::super::LobeShape::Moments;
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("least-squares"), "{e}");
+        s.fit.lobe_shape = super::super::LobeShape::LeastSquares;
+        s.validate().unwrap();
+    }
 }

@@ -155,6 +155,20 @@ fn the_lobe_kernel_round_trips() {
     assert_eq!(b.bake.kernel, LobeKernel::Ggx);
 }
 
+/// So is the lobe domain: a `--lobe-domain half-vector` bundle is read back as one (its lobes
+/// are functions of the half vector); older bundles read as the light domain.
+#[test]
+fn the_lobe_domain_round_trips() {
+    let a = baked(false);
+    assert_eq!(a.bake.domain, relight_bake::sg::SgDomain::Light);
+    let mut a = a;
+    a.settings.bake.fit.lobe_domain = relight_bake::sg::SgDomain::HalfVector;
+    a.bake.domain = relight_bake::sg::SgDomain::HalfVector;
+    let b = round_trip(&Sg::store(&a).unwrap()).unwrap();
+    assert_eq!(b.settings, a.settings);
+    assert_eq!(b.bake.domain, relight_bake::sg::SgDomain::HalfVector);
+}
+
 #[test]
 fn f16_bundle_round_trips_within_half_precision() {
     let a = baked(true);

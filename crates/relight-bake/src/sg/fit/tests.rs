@@ -86,6 +86,7 @@ fn config(lobes: usize) -> FitConfig {
             lobe_order: LobeOrder::Joint,
             lobe_shape: Default::default(),
             lobe_kernel: Default::default(),
+            lobe_domain: Default::default(),
             regions: 0,
             // The recovery tests check the least-squares fit itself.
             energy: false,
