@@ -546,3 +546,17 @@ fn what_the_gpu_does_not_render_is_refused_by_name() {
     };
     assert!(f.render(&huge, &opts()).is_err());
 }
+
+/// A bundle with lobes in the half-vector domain (`--lobe-domain half-vector`) is refused by
+/// name: the GPU frame integrates light-domain lobes only (the CPU frame renders it).
+#[test]
+fn half_vector_lobes_are_refused_by_name() {
+    let Some(gpu) = gpu() else { return };
+    let (mut b, _) = sg_bake();
+    if let Baked::Sg(s) = &mut b {
+        s.bake.domain = relight_bake::sg::SgDomain::HalfVector;
+    }
+    let fs = FrameSettings::default_for(MethodKind::Sg);
+    let e = frame_of(&gpu, &b, &fs).err().unwrap().to_string();
+    assert!(e.contains("half-vector"), "{e}");
+}
