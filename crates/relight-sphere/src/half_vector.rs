@@ -39,7 +39,7 @@
 //! (`phi sqrt(s) / 2`, `lambda / s`, `a`), continued from neighbour to neighbour so that the
 //! parameters vary smoothly, and interpolated bilinearly ([`taps`]). Above the grid's
 //! largest `s` the scale-free parameters are constant (the term is small and Gaussian in its
-//! local angles); below its smallest they are held too; beyond its last `theta_v` the last
+//! local angles); a broader term than its smallest ([`S_MIN`]) is integrated as that one; beyond its last `theta_v` the last
 //! column is used.
 
 use crate::sg::{unit_integral, SgLobe};
@@ -70,11 +70,17 @@ pub struct WarpTap {
 
 /// The grid of the table: `ln s` from [`LN_S_MIN`] in steps of [`LN_S_STEP`] ([`S_COUNT`]
 /// values), `theta_v` from 0 in steps of [`THETA_STEP`] degrees ([`THETA_COUNT`] values).
-pub const LN_S_MIN: f32 = -1.5;
+pub const LN_S_MIN: f32 = -6.0;
 /// See [`LN_S_MIN`].
 pub const LN_S_STEP: f32 = 0.375;
 /// See [`LN_S_MIN`].
-pub const S_COUNT: usize = 25;
+pub const S_COUNT: usize = 37;
+/// The grid's smallest `s`, `exp(LN_S_MIN)`: a broader term is integrated as this one (it
+/// is constant over the sphere to within `exp(-2 s)`, 0.5 %). Issue 10: before the grid
+/// reached this far (its smallest `s` was 0.22), the scale-free mass `s int g` held below
+/// the grid made `int g` of a very broad term grow as `1 / s`, and a GGX plastic's broad
+/// lobes rendered many times too bright.
+pub const S_MIN: f32 = 0.002_478_752;
 /// See [`LN_S_MIN`].
 pub const THETA_STEP: f32 = 5.0;
 /// See [`LN_S_MIN`].
@@ -135,6 +141,8 @@ pub fn term_mass(s: f32, c: f32) -> f32 {
     if c <= 0.0 {
         return 0.0;
     }
+    // Below the grid `g` is constant to within `exp(-2 s)`: held at the smallest `s`.
+    let s = s.max(S_MIN);
     let (i0, j0, ws, wt) = locate(s, c);
     let mass = |i: usize, j: usize| table::MASS[i * THETA_COUNT + j];
     ((mass(i0, j0) * (1.0 - wt) + mass(i0, j0 + 1) * wt) * (1.0 - ws)
@@ -150,6 +158,7 @@ pub fn term_mass(s: f32, c: f32) -> f32 {
 /// Debug builds assert `s > 0`.
 pub fn taps(s: f32, c: f32) -> [WarpTap; TAPS] {
     debug_assert!(s > 0.0);
+    let s = s.max(S_MIN);
     let (i0, j0, ws, wt) = locate(s, c);
     let e = |i: usize, j: usize| &table::TABLE[i * THETA_COUNT + j];
     let mut out: [WarpTap; TAPS] = std::array::from_fn(|k| {
