@@ -88,6 +88,8 @@ pub struct ViewTarget {
     pub norm2: f64,
     /// `sum dA T`, the data's integral per channel (exact, grouping preserves it).
     pub integral: Vec3,
+    /// The largest channel of any texel (before grouping).
+    pub peak: f32,
     /// The view whose half vectors the target's directions are ([`ViewTarget::to_half_vector`]),
     /// `None` in the light domain.
     pub view: Option<Vec3>,
@@ -162,6 +164,7 @@ pub fn group(tables: &CubeTables, data: &[Vec3]) -> ViewTarget {
         norm2: target.norm2(),
         target,
         integral: Vec3::new(integral[0] as f32, integral[1] as f32, integral[2] as f32),
+        peak,
         view: None,
     }
 }
