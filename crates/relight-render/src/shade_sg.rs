@@ -666,7 +666,13 @@ impl<'a> SgRenderer<'a> {
         let n = frame.lobe_count;
         let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
-        let v = frame.env_from_world * (frame.eye - f.position).normalize_or(f.shading_normal);
+        // The fragment's own view, needed by half-vector lobes only.
+        let v = match self.bake.domain {
+            SgDomain::Light => Vec3::ZERO,
+            SgDomain::HalfVector => {
+                frame.env_from_world * (frame.eye - f.position).normalize_or(f.shading_normal)
+            }
+        };
         let mut start = 0;
         for count in self.component_lobes() {
             let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);

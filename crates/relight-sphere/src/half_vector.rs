@@ -239,6 +239,28 @@ fn polar_grid(w0: Vec3, s: f32) -> (Vec<Vec3>, Vec<f32>) {
     (dirs, weights)
 }
 
+/// `|| sum_i G_i - g ||_2 / || g ||_2` of `taps` for a term of sharpness `s` at view angle
+/// `theta_v` (radians), on the fit's quadrature ([`polar_grid`]).
+pub fn relative_l2(s: f32, theta_v: f32, taps: &[WarpTap; TAPS]) -> f64 {
+    let (m, t) = (Vec3::Z, Vec3::X);
+    let v = m * theta_v.cos() + t * theta_v.sin();
+    let w0 = (2.0 * theta_v.cos() * m - v).normalize();
+    let axes = taps.map(|q| tap_axis(m, t, theta_v, q.offset));
+    let (dirs, weights) = polar_grid(w0, s);
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (&w, &a) in dirs.iter().zip(&weights) {
+        let g = term(s, m, v, w) as f64;
+        let f: f32 = taps
+            .iter()
+            .zip(&axes)
+            .map(|(q, mu)| q.weight * (q.sharpness * (mu.dot(w) - 1.0)).exp())
+            .sum();
+        num += (f as f64 - g).powi(2) * a as f64;
+        den += g * g * a as f64;
+    }
+    (num / den).sqrt()
+}
+
 /// A fitted table entry: the taps and the relative L2 error of their mixture against `g`
 /// over the sphere (as stored: after the scaling to `int g`).
 #[derive(Clone, Debug)]
@@ -329,20 +351,9 @@ pub fn fit_entry(s: f32, theta_v: f32, start: &[WarpTap; TAPS]) -> EntryFit {
         .sum();
     let scale = if model > 0.0 { exact / model } else { 0.0 } as f32;
     taps.iter_mut().for_each(|tap| tap.weight *= scale);
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for ((&w, gw), &a) in dirs.iter().zip(&g).zip(&weights) {
-        let f: f32 = taps
-            .iter()
-            .map(|q| {
-                q.weight * (q.sharpness * (tap_axis(m, t, theta_v, q.offset).dot(w) - 1.0)).exp()
-            })
-            .sum();
-        num += ((f - gw.x) as f64).powi(2) * a as f64;
-        den += (gw.x as f64).powi(2) * a as f64;
-    }
     EntryFit {
+        relative_error: relative_l2(s, theta_v, &taps),
         taps,
-        relative_error: (num / den).sqrt(),
         mass: exact,
     }
 }

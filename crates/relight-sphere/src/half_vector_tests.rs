@@ -133,25 +133,7 @@ fn every_table_entry_approximates_its_term() {
     for i in 0..S_COUNT {
         for j in 0..THETA_COUNT {
             let (s, th) = (grid_s(i), grid_theta(j));
-            let (m, t) = (Vec3::Z, Vec3::X);
-            let v = m * th.cos() + t * th.sin();
-            let w0 = (2.0 * th.cos() * m - v).normalize();
-            let (dirs, weights) = polar_grid(w0, s);
-            let tp = taps(s, th.cos());
-            let (mut num, mut den) = (0.0f64, 0.0f64);
-            for (&w, &a) in dirs.iter().zip(&weights) {
-                let g = term(s, m, v, w) as f64;
-                let f: f64 = tp
-                    .iter()
-                    .map(|q| {
-                        let mu = tap_axis(m, t, th, q.offset);
-                        (q.weight * (q.sharpness * (mu.dot(w) - 1.0)).exp()) as f64
-                    })
-                    .sum();
-                num += (f - g).powi(2) * a as f64;
-                den += g * g * a as f64;
-            }
-            let e = (num / den).sqrt();
+            let e = relative_l2(s, th, &taps(s, th.cos()));
             if grid_theta(j).to_degrees() > 70.5 {
                 worst_grazing = worst_grazing.max(e);
                 continue;

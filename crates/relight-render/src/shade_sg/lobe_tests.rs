@@ -265,25 +265,14 @@ fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
     let (reference, variance) = reference(&scene, caster.as_ref());
     let lighting = SgLighting::new(&scene.env, 3, 128);
     let render = |kernel: bake_sg::SgKernel| {
-        let settings = SgBakeSettings {
-            direct_res: 16,
-            direct_lobes: 1,
-            indirect_lobes: 0,
-            diffuse_order: 3,
-            fit: bake_sg::SgFitSettings {
+        let bake = one_lobe_bake(
+            &scene,
+            caster.as_ref(),
+            bake_sg::SgFitSettings {
                 lobe_kernel: kernel,
                 ..Default::default()
             },
-            ..SgBakeSettings::default()
-        };
-        let bake = bake_sg::bake(
-            &scene.mesh,
-            &scene.materials,
-            None,
-            caster.as_ref(),
-            &settings,
-        )
-        .unwrap();
+        );
         let (img, _) = SgRenderer::new(&scene.mesh, &bake).render(
             &lighting,
             &scene.camera,
@@ -319,6 +308,24 @@ fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
     );
 }
 
+/// A bake of `scene` with one direct lobe (16 x 16 faces, no indirect lobe, SH order 3) and
+/// the fit settings `fit`.
+fn one_lobe_bake(
+    scene: &Scene,
+    caster: &dyn relight_scene::accel::RayCaster,
+    fit: bake_sg::SgFitSettings,
+) -> SgBake {
+    let settings = SgBakeSettings {
+        direct_res: 16,
+        direct_lobes: 1,
+        indirect_lobes: 0,
+        diffuse_order: 3,
+        fit,
+        ..SgBakeSettings::default()
+    };
+    bake_sg::bake(&scene.mesh, &scene.materials, None, caster, &settings).unwrap()
+}
+
 /// Issue 10 item 3: one GGX-kernel lobe in the half-vector domain (`--lobe-domain
 /// half-vector`) against one in the light domain, both through the frame (prefiltered chain,
 /// the tabulated Gaussians of `relight_sphere::half_vector` for the former). Control: the
@@ -331,26 +338,15 @@ fn one_half_vector_lobe_is_no_worse_than_one_light_domain_lobe() {
     let lighting = SgLighting::new(&scene.env, 3, 128);
     let opts = RasterOptions { supersample: 4 };
     let render = |domain: bake_sg::SgDomain| {
-        let settings = SgBakeSettings {
-            direct_res: 16,
-            direct_lobes: 1,
-            indirect_lobes: 0,
-            diffuse_order: 3,
-            fit: bake_sg::SgFitSettings {
+        let bake = one_lobe_bake(
+            &scene,
+            caster.as_ref(),
+            bake_sg::SgFitSettings {
                 lobe_kernel: bake_sg::SgKernel::Ggx,
                 lobe_domain: domain,
                 ..Default::default()
             },
-            ..SgBakeSettings::default()
-        };
-        let bake = bake_sg::bake(
-            &scene.mesh,
-            &scene.materials,
-            None,
-            caster.as_ref(),
-            &settings,
-        )
-        .unwrap();
+        );
         let (img, _) =
             SgRenderer::new(&scene.mesh, &bake).render(&lighting, &scene.camera, None, &opts);
         (img, bake)
