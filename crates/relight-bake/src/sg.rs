@@ -102,6 +102,11 @@ pub struct SgBake {
     /// The lobes' variable (the fit's [`SgFitSettings::lobe_domain`]): the light direction
     /// `w`, or the half vector `h(w) = normalize(w + v)` of the view the lobe is seen from.
     pub domain: SgDomain,
+    /// The bake's [`SgBakeSettings::horizon_deg`]: a view below this elevation over a
+    /// vertex's shading horizon holds the transport of the view clamped to it
+    /// ([`transport::clamp_view`]). The frame of a half-vector bake needs the view each lobe
+    /// was fitted for.
+    pub horizon_deg: f32,
 }
 
 impl SgBake {
@@ -144,6 +149,7 @@ impl SgBake {
             stats: SgFitStats::default(),
             kernel: Default::default(),
             domain: Default::default(),
+            horizon_deg: SgBakeSettings::default().horizon_deg,
         }
     }
 }
@@ -576,5 +582,6 @@ fn assemble(
         stats: fitted.stats,
         kernel: settings.fit.lobe_kernel.kernel(),
         domain: settings.fit.lobe_domain,
+        horizon_deg: settings.horizon_deg,
     }
 }

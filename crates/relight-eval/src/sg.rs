@@ -367,7 +367,7 @@ fn run_one(
                 spp: e.spp,
                 direct_reference: (depth == 2).then_some(&r.mean),
                 mask: &mask,
-                shade: Default::default(),
+                shade: ShadeOptions::default_for(sg.bake.domain),
             })?);
         }
     }

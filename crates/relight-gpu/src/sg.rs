@@ -46,8 +46,8 @@ impl<'a> SgGpuFrame<'a> {
                     .to_string(),
             ));
         }
-        let renderer =
-            SgRenderer::new(&baked.scene.mesh, &baked.bake).with_options(s.shade_options());
+        let renderer = SgRenderer::new(&baked.scene.mesh, &baked.bake)
+            .with_options(s.shade_options(baked.bake.domain));
         let mut up = 0;
         let mesh = MeshBuffers::new(gpu, &baked.scene.mesh, &mut up)?;
         let raster = Raster::new(gpu, &mut up)?;

@@ -22,8 +22,11 @@
 //!    has lobes `a K(1 - mu . h(w))`, `h(w) = normalize(w + v)`: each Gaussian term is
 //!    integrated for the fragment's own view `v = normalize(eye - x)` with the five tabulated
 //!    isotropic Gaussians of [`relight_sphere::half_vector`] (five fetches per term, twenty
-//!    per GGX-kernel lobe); blending is unchanged (a half-vector lobe's axis stays near the
-//!    normal from view to view).
+//!    per GGX-kernel lobe). Its lobes are blended as others (a half-vector lobe's axis stays
+//!    near the normal from view to view), then rescaled to keep the blend of the corners'
+//!    integrals, each seen from the view it was fitted or blended for ([`keep_mass`]: a
+//!    lobe's integral over `w` depends on the view), and its corners are blended linearly by
+//!    default ([`ShadeOptions::default_for`]).
 //!
 //! # Conventions
 //! * Lobes are [`SgLobe`]s `a exp(lambda (mu . w - 1))` with axes in the **world** frame in
@@ -67,6 +70,7 @@ use crate::raster::{self, Fragment, RasterOptions, Rendered};
 use crate::shade_sh;
 use glam::{Mat3, Vec3, Vec3A};
 use rayon::prelude::*;
+use relight_bake::sg::transport::clamp_view;
 use relight_bake::sg::SgBake;
 use relight_bake::sg::SgDomain;
 use relight_scene::camera::Camera;
@@ -87,7 +91,7 @@ use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
 mod blend;
-pub use blend::{blend3, blend3_energy, blend3_with, match_corners, LobeBlend};
+pub use blend::{blend3, blend3_energy, blend3_with, keep_mass, match_corners, LobeBlend};
 
 /// Vertices per parallel work item of the per-vertex pass.
 const CHUNK: usize = 1024;
@@ -413,7 +417,8 @@ pub struct SgTimes {
 /// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]): across the three
 /// nearest views at a vertex, and across a triangle's three corners at a pixel. The default
 /// (issue 10, chosen by the figures of docs/RESULTS.md §8; module docs) matches lobes
-/// everywhere, blends views linearly and corners by energy;
+/// everywhere, blends views linearly and corners by energy (a half-vector bake's corners
+/// linearly: [`ShadeOptions::default_for`]);
 /// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadeOptions {
@@ -443,6 +448,21 @@ impl ShadeOptions {
         corners: LobeBlend::Energy,
         match_corners: true,
     };
+
+    /// The default interpolation of a bake whose lobes are in `domain`: [`Self::default`]
+    /// for light-domain lobes. Half-vector lobes keep their integrals across both blends
+    /// ([`keep_mass`]), so the corners' energy blend only weights their shapes by energy;
+    /// blending them linearly instead measured better on all five scenes of the evaluation,
+    /// by 0 to 1.7 points (docs/RESULTS.md §8, session 27: the Spot conductor 10.9 -> 9.2 %).
+    pub fn default_for(domain: SgDomain) -> ShadeOptions {
+        match domain {
+            SgDomain::Light => ShadeOptions::default(),
+            SgDomain::HalfVector => ShadeOptions {
+                corners: LobeBlend::Linear,
+                ..ShadeOptions::default()
+            },
+        }
+    }
 }
 
 impl Default for ShadeOptions {
@@ -483,6 +503,9 @@ pub struct SgRenderer<'a> {
     /// View-factor tables of the distinct materials, and each vertex's table.
     view_tables: Vec<[f32; VIEW_TABLE]>,
     view_index: Vec<u32>,
+    /// Sine and cosine of the bake's `horizon_deg` (half-vector bakes: the view each lobe
+    /// was fitted for, [`relight_bake::sg::transport::clamp_view`]).
+    horizon: (f32, f32),
 }
 
 impl<'a> SgRenderer<'a> {
@@ -523,11 +546,12 @@ impl<'a> SgRenderer<'a> {
         SgRenderer {
             mesh,
             bake,
-            options: ShadeOptions::default(),
+            options: ShadeOptions::default_for(bake.domain),
             views,
             albedo,
             view_tables,
             view_index,
+            horizon: bake.horizon_deg.to_radians().sin_cos(),
         }
     }
 
@@ -564,24 +588,44 @@ impl<'a> SgRenderer<'a> {
     /// blended over the three nearest views, world frame, into `out` (`lobe_count` entries).
     pub fn view_lobes(&self, x: usize, v: Vec3, out: &mut [SgLobe]) {
         let (t, b) = self.views.locate(v);
-        self.blend_views(x, t, b, out);
+        self.blend_views(x, t, b, v, out);
     }
 
-    /// Blend the lobes of vertex `x` over the views of triangle `t` with weights `b`.
+    /// The direction vertex `x`'s lobes for world view `v` were fitted for: `v`, or `v`
+    /// clamped above the vertex's shading horizon as the bake clamps it.
     #[inline]
-    fn blend_views(&self, x: usize, t: usize, b: [f32; 3], out: &mut [SgLobe]) {
-        let [j0, j1, j2] = self.views.triangles()[t].map(|j| j as usize);
+    fn fitted_view(&self, x: usize, v: Vec3) -> Vec3 {
+        match self.mesh.normals[x].try_normalize() {
+            Some(n) => clamp_view(n, v, self.horizon.0, self.horizon.1).0,
+            None => v,
+        }
+    }
+
+    /// Blend the lobes of vertex `x` over the views of triangle `t` with weights `b`, for the
+    /// world view `v` (used by half-vector bakes only: [`blend::keep_mass`]).
+    #[inline]
+    fn blend_views(&self, x: usize, t: usize, b: [f32; 3], v: Vec3, out: &mut [SgLobe]) {
+        let ids = self.views.triangles()[t].map(|j| j as usize);
+        let half = self.bake.domain == SgDomain::HalfVector;
+        let (src, dst) = if half {
+            (
+                ids.map(|j| self.fitted_view(x, self.views.vertices()[j])),
+                self.fitted_view(x, v),
+            )
+        } else {
+            ([Vec3::ZERO; 3], Vec3::ZERO)
+        };
         let mut o = out.iter_mut();
         for lobes in std::iter::once(&self.bake.direct).chain(self.bake.indirect.as_ref()) {
-            let l = [lobes.get(x, j0), lobes.get(x, j1), lobes.get(x, j2)];
-            let p = self.permutations(self.options.match_views, [j0, j1, j2], l);
+            let l = ids.map(|j| lobes.get(x, j));
+            let p = self.permutations(self.options.match_views, ids, l);
             for k in 0..lobes.lobe_count {
-                *o.next().expect("out holds lobe_count lobes") = blend3_with(
-                    self.options.views,
-                    self.bake.kernel,
-                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
-                    b,
-                );
+                let corners = [0, 1, 2].map(|c| &l[c][p[c][k] as usize]);
+                let mut lobe = blend3_with(self.options.views, self.bake.kernel, corners, b);
+                if half {
+                    lobe = keep_mass(self.bake.kernel, lobe, corners, src, b, dst);
+                }
+                *o.next().expect("out holds lobe_count lobes") = lobe;
             }
         }
     }
@@ -635,7 +679,7 @@ impl<'a> SgRenderer<'a> {
                     let out = &mut lobes[i * n..(i + 1) * n];
                     let (t, b) = locate_near(&self.views, hint, v);
                     hint = Some(t);
-                    self.blend_views(x, t, b, out);
+                    self.blend_views(x, t, b, v, out);
                     for l in out.iter_mut() {
                         l.axis = r * l.axis;
                     }
@@ -666,12 +710,19 @@ impl<'a> SgRenderer<'a> {
         let n = frame.lobe_count;
         let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
-        // The fragment's own view, needed by half-vector lobes only.
-        let v = match self.bake.domain {
-            SgDomain::Light => Vec3::ZERO,
-            SgDomain::HalfVector => {
-                frame.env_from_world * (frame.eye - f.position).normalize_or(f.shading_normal)
-            }
+        // The fragment's own view and the views its corners' lobes were blended for
+        // (`prepare`), needed by half-vector lobes only (map frame).
+        let half = self.bake.domain == SgDomain::HalfVector;
+        let (v, src) = if half {
+            let r = frame.env_from_world;
+            let to_eye = |p: Vec3, n: Vec3| (frame.eye - p).normalize_or(n);
+            let src = id.map(|x| {
+                let n = self.mesh.normals[x];
+                r * self.fitted_view(x, to_eye(self.mesh.positions[x], n))
+            });
+            (r * to_eye(f.position, f.shading_normal), src)
+        } else {
+            (Vec3::ZERO, [Vec3::ZERO; 3])
         };
         let mut start = 0;
         for count in self.component_lobes() {
@@ -679,12 +730,11 @@ impl<'a> SgRenderer<'a> {
             start += count;
             let p = self.permutations(self.options.match_corners, id, l);
             for k in 0..count {
-                let lobe = blend3_with(
-                    self.options.corners,
-                    self.bake.kernel,
-                    [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
-                    f.bary,
-                );
+                let corners = [0, 1, 2].map(|c| &l[c][p[c][k] as usize]);
+                let mut lobe = blend3_with(self.options.corners, self.bake.kernel, corners, f.bary);
+                if half {
+                    lobe = keep_mass(self.bake.kernel, lobe, corners, src, f.bary, v);
+                }
                 if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
                     sum += lobe_integral(&lobe, v);
                 }

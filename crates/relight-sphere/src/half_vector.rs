@@ -44,6 +44,7 @@
 
 use crate::sg::{unit_integral, SgLobe};
 use crate::sg_fit::{self, FitOptions, FitTarget};
+use crate::sg_kernel::LobeKernel;
 use crate::Vec3;
 
 #[rustfmt::skip]
@@ -127,6 +128,18 @@ fn locate(s: f32, c: f32) -> (usize, usize, f32, f32) {
         (ft as usize).min(THETA_COUNT - 2),
     );
     (i0, j0, fs - i0 as f32, ft - j0 as f32)
+}
+
+/// `int a K(m . h(w)) dw` of a lobe of kernel `kernel` (its axis `m`) seen from `v`, per
+/// channel: the sum of its Gaussian terms' [`term_mass`]. What a half-vector lobe holds of
+/// its data's integral at that view (the bake's energy rescaling), and what the frame keeps
+/// when it blends lobes fitted for other views (`relight_render::shade_sg`).
+pub fn lobe_mass(kernel: LobeKernel, lobe: &SgLobe, v: Vec3) -> Vec3 {
+    let c = v.dot(lobe.axis);
+    kernel
+        .split(lobe)
+        .map(|t| t.amplitude * term_mass(t.sharpness, c))
+        .sum()
 }
 
 /// `int g(w) dw` of a term of sharpness `s` seen at `c = v . m`: the bilinear interpolation

@@ -240,6 +240,23 @@ struct Path {
     rng: Rng,
 }
 
+/// The direction whose transport view `d` (unit, towards the viewer) holds at a point of
+/// unit shading normal `n`, and whether it is `d` itself (`true`) or `d` clamped to the
+/// elevation `asin(sin_horizon)` above the shading horizon, keeping its azimuth (parent
+/// module docs, "Views below the horizon"); `(sin_horizon, cos_horizon)` is the sine and
+/// cosine of [`SgBakeSettings::horizon_deg`]. The bake tabulates, and a half-vector frame
+/// reads back, each view's lobes for this direction.
+pub fn clamp_view(n: Vec3, d: Vec3, sin_horizon: f32, cos_horizon: f32) -> (Vec3, bool) {
+    let c = d.dot(n);
+    if c >= sin_horizon {
+        return (d, true);
+    }
+    let t = (d - n * c)
+        .try_normalize()
+        .unwrap_or_else(|| Frame::from_normal(n).s);
+    ((n * sin_horizon + t * cos_horizon).normalize(), false)
+}
+
 /// The scene-side [`TransportSource`]: tabulates the direct glossy, indirect glossy and
 /// diffuse SH transport of Green 2005 (thesis sections 2.2.1, 3.1) for any vertex of a mesh.
 ///
@@ -347,17 +364,7 @@ impl<'a> TransportContext<'a> {
     }
 
     fn clamp_view(&self, n: Vec3, d: Vec3) -> (Vec3, bool) {
-        let c = d.dot(n);
-        if c >= self.sin_horizon {
-            return (d, true);
-        }
-        let t = (d - n * c)
-            .try_normalize()
-            .unwrap_or_else(|| Frame::from_normal(n).s);
-        (
-            (n * self.sin_horizon + t * self.cos_horizon).normalize(),
-            false,
-        )
+        clamp_view(n, d, self.sin_horizon, self.cos_horizon)
     }
 
     /// Visibility of the direct cube map from vertex `x`: the unoccluded texels above both

@@ -25,7 +25,11 @@
 //! Gaussians of `relight_sphere::half_vector` ([`half_vector_table`], session 26).
 //!
 //! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
-//! fit` on.
+//! fit` on. For a half-vector bake (`--lobe-domain half-vector`) the rows' fits are the
+//! bake's own, in the half-vector domain, for the sample's (or vertex's, or bake view's)
+//! view; `pixel fit` then integrates them with the warp table and `pixel fit, texel sum`
+//! evaluates them at each texel's half vector, and the frame's rows integrate every blended
+//! lobe for the fragment's own view as the frame does (docs/RESULTS.md §8, session 27).
 //! "Integrated exactly" uses a dense chain ([`dense_lighting`]: 8 levels per octave of
 //! `sigma`, two texels per `sigma`), which agrees with brute-force integration against every
 //! texel of the map to within 2 % next to a bright window (test
@@ -40,14 +44,14 @@ use crate::Result;
 use glam::Vec3;
 use rayon::prelude::*;
 use relight_bake::sg::fit::{fit_alone, ComponentFit};
-use relight_bake::sg::transport::TransportContext;
+use relight_bake::sg::transport::{clamp_view, TransportContext};
 use relight_bake::sg::{SgBake, VIEW_FREQUENCY};
 use relight_method::sg::SgBaked;
 use relight_render::compare;
 use relight_render::raster::{self, RasterOptions};
 use relight_render::shade_sg::{
-    blend3_with, match_corners, prefilter_parallel, source_face_size, to_cube, SgFrame, SgLighting,
-    SgRenderer, ShadeOptions,
+    blend3_with, keep_mass, match_corners, prefilter_parallel, source_face_size, to_cube, SgFrame,
+    SgLighting, SgRenderer, ShadeOptions,
 };
 use relight_render::Image;
 use relight_scene::camera::Camera;
@@ -325,19 +329,11 @@ pub struct BudgetInput<'a> {
 /// `budget_l<N>_<row>.exr` in the experiment's folder.
 ///
 /// # Errors
-/// Mitsuba, ray-caster or write failures; a half-vector-domain bake (the rows fit and
-/// integrate lobes in the light domain).
+/// Mitsuba, ray-caster or write failures.
 pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let scene = b.scene;
     let bake = &b.baked.bake;
-    if bake.domain != relight_bake::sg::SgDomain::Light {
-        return Err(relight_method::MethodError::Settings(
-            "the sg error budget (--budget) needs a light-domain bake: its rows fit and \
-             integrate lobes in the light direction (the half-vector rows are its study rows)"
-                .to_string(),
-        )
-        .into());
-    }
+    let half = bake.domain == relight_bake::sg::SgDomain::HalfVector;
     let n = bake.direct.lobe_count;
     let owned;
     let reference = match b.direct_reference {
@@ -379,16 +375,32 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let fit = ComponentFit::new(res, n, &settings.fit, &views);
     let lbar = texel_means(env, res);
     let (_, solid) = ctx.direct_texels();
+    let (sin_h, cos_h) = settings.horizon_deg.to_radians().sin_cos();
     let [tabulated, pixel_fit, texel_fit, half_fit, half_taps, half_table] =
         per_sample(scene, &prepared, |p, nrm, ng, x, out| {
+            // The view the cube map is computed for (clamped above the horizon as the bake
+            // clamps it): a half-vector fit maps its directions with this one.
             let view = (eye - p).normalize_or(nrm);
+            let view = match nrm.try_normalize() {
+                Some(n) => clamp_view(n, view, sin_h, cos_h).0,
+                None => view,
+            };
             let mut t = vec![Vec3::ZERO; 6 * res * res];
             ctx.direct_at(p, nrm, ng, &bake.materials[x], view, &mut t);
             let (lobes, _) = fit_alone(&fit, &t, view);
             out[0] = texel_sum(&lbar, solid, |i| t[i]);
-            out[1] = integrate_world(&dense, bake.kernel, &lobes);
             let dirs = fit.tables.dirs();
-            out[2] = texel_sum(&lbar, solid, |i| eval_mixture(bake.kernel, &lobes, dirs[i]));
+            if half {
+                // The bake's own fit is in the half-vector domain: integrated as its frame
+                // does (the warp table), and evaluated at each texel's half vector.
+                out[1] = half_vector_table(&dense, bake.kernel, &lobes, view);
+                out[2] = texel_sum(&lbar, solid, |i| {
+                    eval_mixture(bake.kernel, &lobes, (dirs[i] + view).normalize_or(view))
+                });
+            } else {
+                out[1] = integrate_world(&dense, bake.kernel, &lobes);
+                out[2] = texel_sum(&lbar, solid, |i| eval_mixture(bake.kernel, &lobes, dirs[i]));
+            }
             let (sum, half) = half_vector_fit(&fit, bake.kernel, &t, view, &lbar, solid);
             out[3] = sum;
             out[4] = half_vector_taps(&dense, bake.kernel, &half, view);
@@ -406,20 +418,30 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let g = ctx.geometric_normal(x);
             let fit_view = |t: &mut Vec<Vec3>, v: Vec3| {
                 ctx.direct_at(p, mesh.normals[x], g, m, v, t);
-                fit_alone(&fit, t, v).0
+                fit_alone(&fit, t, ctx.clamped_view(x, v)).0
             };
             let view = (eye - p).normalize_or(mesh.normals[x]);
             let exact = fit_view(t, view);
             let (tri, w) = views.locate(view);
             let ids = views.triangles()[tri].map(|j| j as usize);
             let corners = ids.map(|j| fit_view(t, views.vertices()[j]));
-            let blended = blend_corners(
+            let mut blended = blend_corners(
                 b.shade,
                 bake.kernel,
                 ids,
                 [&corners[0], &corners[1], &corners[2]],
                 w,
             );
+            if half {
+                // As the frame blends half-vector lobes across views (one lobe per
+                // component in this domain, so no permutation).
+                let src = ids.map(|j| ctx.clamped_view(x, views.vertices()[j]));
+                let dst = ctx.clamped_view(x, view);
+                for (k, l) in blended.iter_mut().enumerate() {
+                    let c = [0, 1, 2].map(|j| &corners[j][k]);
+                    *l = keep_mass(bake.kernel, *l, c, src, w, dst);
+                }
+            }
             [exact, blended].map(|mut l| {
                 for g in &mut l {
                     g.axis = r * g.axis;

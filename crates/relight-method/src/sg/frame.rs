@@ -6,6 +6,7 @@ use super::SgBaked;
 use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
 use crate::PrepareTimes;
 use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
+use relight_bake::sg::SgDomain;
 use relight_render::shade_sg::{LobeBlend, SgLighting, SgRenderer, ShadeOptions};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
@@ -26,9 +27,10 @@ pub struct SgFrameSettings {
     /// thesis' parameters; `energy`: integrals, shape weighted by energy).
     #[cfg_attr(feature = "cli", arg(long = "sg-view-blend", value_enum, default_value_t = SgFrameSettings::default().view_blend))]
     pub view_blend: SgBlend,
-    /// How a pixel blends its triangle's three corners' lobes.
-    #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum, default_value_t = SgFrameSettings::default().corner_blend))]
-    pub corner_blend: SgBlend,
+    /// How a pixel blends its triangle's three corners' lobes [default: energy for a bake
+    /// in the light domain, linear for one in the half-vector domain]
+    #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum))]
+    pub corner_blend: Option<SgBlend>,
     /// Which blends permute lobes to a reference's before blending (section 3.4's flips).
     #[cfg_attr(feature = "cli", arg(long = "sg-match", value_enum, default_value_t = SgFrameSettings::default().matching))]
     pub matching: SgMatch,
@@ -79,8 +81,9 @@ impl std::fmt::Display for SgMatch {
 }
 
 impl SgFrameSettings {
-    /// The renderer's interpolation options.
-    pub fn shade_options(&self) -> ShadeOptions {
+    /// The renderer's interpolation options for a bake whose lobes are in `domain` (the
+    /// corners' default depends on it: `ShadeOptions::default_for`).
+    pub fn shade_options(&self, domain: SgDomain) -> ShadeOptions {
         let blend = |b| match b {
             SgBlend::Linear => LobeBlend::Linear,
             SgBlend::Energy => LobeBlend::Energy,
@@ -88,7 +91,9 @@ impl SgFrameSettings {
         ShadeOptions {
             views: blend(self.view_blend),
             match_views: matches!(self.matching, SgMatch::Views | SgMatch::Both),
-            corners: blend(self.corner_blend),
+            corners: self
+                .corner_blend
+                .map_or(ShadeOptions::default_for(domain).corners, blend),
             match_corners: matches!(self.matching, SgMatch::Corners | SgMatch::Both),
         }
     }
@@ -96,13 +101,14 @@ impl SgFrameSettings {
 
 impl Default for SgFrameSettings {
     /// A 128-texel finest level; the renderer's default interpolation
-    /// (`ShadeOptions::default`: views linear, corners by energy, lobes matched in both;
-    /// the test `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
+    /// (`ShadeOptions::default_for`: views linear, corners by energy or, for half-vector
+    /// lobes, linearly, lobes matched in both; the test
+    /// `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
     fn default() -> Self {
         SgFrameSettings {
             prefilter_size: 128,
             view_blend: SgBlend::Linear,
-            corner_blend: SgBlend::Energy,
+            corner_blend: None,
             matching: SgMatch::Both,
         }
     }
@@ -126,7 +132,7 @@ impl<'a> SgFrame<'a> {
         Ok(SgFrame {
             baked,
             renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake)
-                .with_options(s.shade_options()),
+                .with_options(s.shade_options(baked.bake.domain)),
             prefilter_size: s.prefilter_size,
             lighting: None,
         })

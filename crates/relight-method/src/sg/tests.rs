@@ -102,6 +102,7 @@ fn baked(f16: bool) -> SgBaked {
             },
             kernel: settings.bake.fit.lobe_kernel.kernel(),
             domain: settings.bake.fit.lobe_domain,
+            horizon_deg: settings.bake.horizon_deg,
         },
         settings,
         record: BakeRecord {
@@ -321,25 +322,36 @@ fn a_small_bake_through_the_seam_renders_and_refuses_other_methods() {
 fn frame_settings_map_onto_the_renderers_interpolation() {
     use relight_render::shade_sg::{LobeBlend, ShadeOptions};
     // The default settings are the renderer's default, so `relight render` and the library
-    // agree.
+    // agree, in both lobe domains.
+    use relight_bake::sg::SgDomain;
+    for domain in [SgDomain::Light, SgDomain::HalfVector] {
+        assert_eq!(
+            SgFrameSettings::default().shade_options(domain),
+            ShadeOptions::default_for(domain)
+        );
+    }
     assert_eq!(
-        SgFrameSettings::default().shade_options(),
+        ShadeOptions::default_for(SgDomain::Light),
         ShadeOptions::default()
+    );
+    assert_eq!(
+        ShadeOptions::default_for(SgDomain::HalfVector).corners,
+        LobeBlend::Linear
     );
     let paper = SgFrameSettings {
         view_blend: SgBlend::Linear,
-        corner_blend: SgBlend::Linear,
+        corner_blend: Some(SgBlend::Linear),
         matching: SgMatch::None,
         ..Default::default()
     };
-    assert_eq!(paper.shade_options(), ShadeOptions::PAPER);
+    assert_eq!(paper.shade_options(SgDomain::Light), ShadeOptions::PAPER);
     let o = SgFrameSettings {
         view_blend: SgBlend::Energy,
-        corner_blend: SgBlend::Linear,
+        corner_blend: Some(SgBlend::Linear),
         matching: SgMatch::Corners,
         ..Default::default()
     }
-    .shade_options();
+    .shade_options(SgDomain::Light);
     assert_eq!(
         (o.views, o.match_views, o.corners, o.match_corners),
         (LobeBlend::Energy, false, LobeBlend::Linear, true)

@@ -607,17 +607,11 @@ fn clamp_peak(lobes: &mut [SgLobe], t: &ViewTarget) {
 
 /// `int g(w) dw` of a fitted lobe over the light directions: `a unit_integral(lambda)` in the
 /// light domain; in the half-vector domain of view `v`, the integral of each Gaussian term
-/// `exp(s (m . h(w) - 1))` over `w` ([`half_vector::term_mass`]).
+/// `exp(s (m . h(w) - 1))` over `w` ([`half_vector::lobe_mass`]).
 fn lobe_integral(kernel: LobeKernel, t: &ViewTarget, g: &SgLobe) -> Vec3 {
     match t.view {
         None => g.amplitude * kernel.unit_integral(g.sharpness),
-        Some(v) => {
-            let c = v.dot(g.axis);
-            kernel
-                .split(g)
-                .map(|term| term.amplitude * half_vector::term_mass(term.sharpness, c))
-                .sum()
-        }
+        Some(v) => half_vector::lobe_mass(kernel, g, v),
     }
 }
 
