@@ -207,8 +207,14 @@ pub struct GpuSgParams {
     pub kernel_rate: [f32; 4],
     /// The lobe kernel's weights `w_j` (unused terms 0: skipped).
     pub kernel_weight: [f32; 4],
+    /// Rows of `env_from_world` (`w` unused): the fragment's view into the map frame.
+    pub env_from_world: [[f32; 4]; 3],
+    /// 1: lobes in the half-vector domain (`sg_half.wgsl`), 0: in the light direction.
+    pub half_vector: u32,
+    /// Padding to 16 bytes.
+    pub pad: [u32; 3],
 }
-const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS + 32);
+const _: () = assert!(size_of::<GpuSgParams>() == 32 + 4 * MAX_CHAIN_LEVELS + 32 + 64);
 
 /// The `cuts` shading pass's parameters. WGSL twin: `CutsParams` in `shaders/cuts.wgsl`.
 #[repr(C)]

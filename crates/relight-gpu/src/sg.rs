@@ -5,18 +5,37 @@
 //! (`SgRenderer::prepare`: view location on the icosahedron, lobe matching and blending,
 //! diffuse SH), the upload of its lobes and diffuse radiance, then the matching of each
 //! triangle's corner lobes (a compute pass, `sg_match.wgsl`), the per-pixel lobe blend and
-//! prefiltered fetches (`sg.wgsl`) and the resolve pass.
+//! prefiltered fetches (`sg.wgsl`) and the resolve pass. Lobes in the half-vector domain
+//! (`--lobe-domain half-vector`) are integrated for the fragment's own view with the warp
+//! table of `relight_sphere::half_vector` (a storage buffer, five fetches per Gaussian
+//! term, `sg_half.wgsl`), their blends keeping the corners' integrals as the CPU's
+//! `keep_mass` (each vertex lobe's unit mass at its view, from
+//! `SgRenderer::vertex_masses`, rides in the uploaded lobe's fourth amplitude component).
 
 use crate::layout::{GpuLobe, GpuMatchParams, GpuSgParams, MAX_CHAIN_LEVELS};
 use crate::pipeline::{self, bind, dispatch_2d, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
 use glam::Vec3;
+use relight_bake::sg::SgDomain;
 use relight_method::sg::{SgBaked, SgFrameSettings};
 use relight_method::{FrameOptions, MethodKind};
 use relight_render::shade_sg::{LobeBlend, SgLighting, SgRenderer};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
+use relight_sphere::half_vector;
 use std::time::Instant;
+
+/// The grid of `relight_sphere::half_vector`'s table as WGSL constants (`sg_half.wgsl`).
+fn half_vector_constants() -> String {
+    use half_vector::*;
+    format!(
+        "const HV_LN_S_MIN: f32 = {LN_S_MIN:?};\nconst HV_LN_S_STEP: f32 = {LN_S_STEP:?};\n\
+         const HV_S_COUNT: u32 = {S_COUNT}u;\nconst HV_THETA_STEP: f32 = {THETA_STEP:?};\n\
+         const HV_THETA_COUNT: u32 = {THETA_COUNT}u;\nconst HV_S_MIN: f32 = {S_MIN:?};\n\
+         const HV_TAPS: u32 = {TAPS}u;\nconst HV_MASS_LEN: u32 = {}u;\n",
+        S_COUNT * THETA_COUNT
+    )
+}
 
 /// The `sg` frame on the GPU.
 pub(crate) struct SgGpuFrame<'a> {
@@ -32,6 +51,7 @@ pub(crate) struct SgGpuFrame<'a> {
     diffuse: wgpu::Buffer,
     params: wgpu::Buffer,
     perms: wgpu::Buffer,
+    half_table: wgpu::Buffer,
     matching: wgpu::ComputePipeline,
     match_group: wgpu::BindGroup,
     prepared: Option<(SgLighting, wgpu::BindGroup)>,
@@ -39,13 +59,6 @@ pub(crate) struct SgGpuFrame<'a> {
 
 impl<'a> SgGpuFrame<'a> {
     pub fn new(gpu: &'a Gpu, baked: &'a SgBaked, s: &SgFrameSettings) -> Result<Self, GpuError> {
-        if baked.bake.domain != relight_bake::sg::SgDomain::Light {
-            return Err(GpuError::Unsupported(
-                "an sg bundle with lobes in the half-vector domain (--lobe-domain half-vector): \
-                 the GPU frame integrates light-domain lobes only; render it on the CPU"
-                    .to_string(),
-            ));
-        }
         let renderer = SgRenderer::new(&baked.scene.mesh, &baked.bake)
             .with_options(s.shade_options(baked.bake.domain));
         let mut up = 0;
@@ -64,6 +77,7 @@ impl<'a> SgGpuFrame<'a> {
                 B::Tex2dArray,
                 B::Uniform,
                 B::Storage,
+                B::Storage,
             ],
         );
         let lobes_wgsl = include_str!("shaders/sg_lobes.wgsl");
@@ -73,6 +87,8 @@ impl<'a> SgGpuFrame<'a> {
                 include_str!("shaders/common.wgsl"),
                 lobes_wgsl,
                 include_str!("shaders/sg.wgsl"),
+                &half_vector_constants(),
+                include_str!("shaders/sg_half.wgsl"),
             ],
         );
         let pipeline = pipeline::render_pipeline(
@@ -87,6 +103,19 @@ impl<'a> SgGpuFrame<'a> {
         let n = renderer.lobe_count();
         let lobes = gpu.buffer("lobes", &vec![0u8; (v * n.max(1)) * 32], STORAGE, &mut up)?;
         let diffuse = gpu.buffer("diffuse", &vec![0u8; v * 16], STORAGE, &mut up)?;
+        // The warp table of half-vector lobes (sg_half.wgsl), bound for every bake (42 KiB).
+        let (mass, taps) = half_vector::table_data();
+        let table: Vec<f32> = mass
+            .iter()
+            .copied()
+            .chain(taps.iter().flatten().flatten().copied())
+            .collect();
+        let half_table = gpu.buffer(
+            "half-vector table",
+            bytemuck::cast_slice(&table),
+            STORAGE,
+            &mut up,
+        )?;
         let params = gpu.buffer(
             "sg params",
             &[0u8; std::mem::size_of::<GpuSgParams>()],
@@ -145,6 +174,7 @@ impl<'a> SgGpuFrame<'a> {
             diffuse,
             params,
             perms,
+            half_table,
             matching,
             match_group,
             prepared: None,
@@ -238,6 +268,12 @@ impl GpuFrame for SgGpuFrame<'_> {
             ln_lambda,
             kernel_rate: std::array::from_fn(|j| b.kernel.terms().get(j).map_or(0.0, |t| t.0)),
             kernel_weight: std::array::from_fn(|j| b.kernel.terms().get(j).map_or(0.0, |t| t.1)),
+            env_from_world: {
+                let m = lighting.env_from_world.transpose();
+                [m.x_axis, m.y_axis, m.z_axis].map(|r| v4(r, 0.0))
+            },
+            half_vector: (b.domain == SgDomain::HalfVector) as u32,
+            pad: [0; 3],
         };
         gpu.write(
             &self.params,
@@ -262,6 +298,7 @@ impl GpuFrame for SgGpuFrame<'_> {
                 wgpu::BindingResource::TextureView(&view),
                 self.params.as_entire_binding(),
                 self.perms.as_entire_binding(),
+                self.half_table.as_entire_binding(),
             ],
         );
         gpu.check()?;
@@ -281,12 +318,15 @@ impl GpuFrame for SgGpuFrame<'_> {
         // The per-vertex pass on the CPU, as the CPU frame's.
         let t0 = Instant::now();
         let frame = self.renderer.prepare(lighting, Vec3::from(camera.origin));
+        // Half-vector bakes: each lobe's unit mass at its vertex's view rides in `w`.
+        let masses = self.renderer.vertex_masses(&frame);
         let lobes: Vec<GpuLobe> = frame
             .lobes
             .iter()
-            .map(|l| GpuLobe {
+            .enumerate()
+            .map(|(i, l)| GpuLobe {
                 axis_sharpness: v4(l.axis, l.sharpness),
-                amplitude: v4(l.amplitude, 0.0),
+                amplitude: v4(l.amplitude, masses.get(i).copied().unwrap_or(0.0)),
             })
             .collect();
         let diffuse: Vec<[f32; 4]> = frame.diffuse.iter().map(|&d| v4(d, 1.0)).collect();

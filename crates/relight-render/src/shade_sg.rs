@@ -591,6 +591,30 @@ impl<'a> SgRenderer<'a> {
         self.blend_views(x, t, b, v, out);
     }
 
+    /// Half-vector bakes: for every lobe of `frame` (from [`SgRenderer::prepare`]), the
+    /// integral of its unit-amplitude shape seen from the view its vertex's lobes were
+    /// blended for ([`relight_sphere::half_vector::lobe_mass`]): what [`keep_mass`] keeps at
+    /// a pixel, precomputed per vertex for the GPU frame. Empty for light-domain bakes.
+    pub fn vertex_masses(&self, frame: &SgFrame) -> Vec<f32> {
+        if self.bake.domain != SgDomain::HalfVector {
+            return vec![];
+        }
+        let n = frame.lobe_count;
+        let r = frame.env_from_world;
+        (0..frame.lobes.len())
+            .map(|i| {
+                let x = i / n.max(1);
+                let nx = self.mesh.normals[x];
+                let v = (frame.eye - self.mesh.positions[x]).normalize_or(nx);
+                let unit = SgLobe {
+                    amplitude: Vec3::ONE,
+                    ..frame.lobes[i]
+                };
+                half_vector::lobe_mass(self.bake.kernel, &unit, r * self.fitted_view(x, v)).x
+            })
+            .collect()
+    }
+
     /// The direction vertex `x`'s lobes for world view `v` were fitted for: `v`, or `v`
     /// clamped above the vertex's shading horizon as the bake clamps it.
     #[inline]

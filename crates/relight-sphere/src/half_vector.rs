@@ -130,6 +130,14 @@ fn locate(s: f32, c: f32) -> (usize, usize, f32, f32) {
     (i0, j0, fs - i0 as f32, ft - j0 as f32)
 }
 
+/// The table as stored, for a GPU twin (`relight-gpu`'s `sg_half.wgsl`): the scale-free
+/// masses `s int g` (row `i` of `ln s`, column `j` of `theta_v` at `i THETA_COUNT + j`),
+/// then the entries' taps, `TAPS` scale-free `(phi sqrt(s) / 2, lambda / s, a)` per entry in
+/// the same order.
+pub fn table_data() -> (&'static [f32], &'static [[[f32; 3]; TAPS]]) {
+    (&table::MASS, &table::TABLE)
+}
+
 /// `int a K(m . h(w)) dw` of a lobe of kernel `kernel` (its axis `m`) seen from `v`, per
 /// channel: the sum of its Gaussian terms' [`term_mass`]. What a half-vector lobe holds of
 /// its data's integral at that view (the bake's energy rescaling), and what the frame keeps

@@ -9,7 +9,9 @@
 // * each lobe is integrated against the lighting with one trilinear fetch of the
 //   Gaussian-prefiltered cube chain (eq. 2.7, figure 3-2's shader):
 //   L_o = sum_k a_k unit_integral(lambda_k) P(mu_k, lambda_k) scale,
-//   plus the Gouraud-interpolated diffuse radiance.
+//   plus the Gouraud-interpolated diffuse radiance;
+// * half-vector lobes (params.half_vector) are rescaled to keep the corners' integrals
+//   (keep_mass) and integrated for the fragment's view with the warp table (sg_half.wgsl).
 // The chain is a 6-layer texture with one mip level per chain level; fetches are manual
 // bilinear textureLoads with the CPU's rules (texel centres at (i + 0.5) / n, clamped at each
 // face's edges, no filtering across faces), linear in ln lambda between the two levels that
@@ -132,6 +134,14 @@ fn fs(f: VOut) -> @location(0) vec4<f32> {
     let b = f.bary / (f.bary.x + f.bary.y + f.bary.z);
     let id = vec3<u32>(indices[3u * f.tri], indices[3u * f.tri + 1u], indices[3u * f.tri + 2u]);
     var sum = diffuse[id.x].xyz * b.x + diffuse[id.y].xyz * b.y + diffuse[id.z].xyz * b.z;
+    // Half-vector lobes (sg_half.wgsl): the fragment's own view in the map frame.
+    var v = vec3<f32>(0.0);
+    if (params.half_vector != 0u) {
+        let p = positions[id.x].xyz * b.x + positions[id.y].xyz * b.y + positions[id.z].xyz * b.z;
+        let d = normalize_or(cam.origin.xyz - p, cam.forward.xyz);
+        let r = params.env_from_world;
+        v = vec3<f32>(dot(r[0].xyz, d), dot(r[1].xyz, d), dot(r[2].xyz, d));
+    }
     var start = 0u;
     for (var comp = 0u; comp < 2u; comp++) {
         var count = params.direct_count;
@@ -151,9 +161,22 @@ fn fs(f: VOut) -> @location(0) vec4<f32> {
             } else {
                 lobe = blend_linear(l0, l1, l2, b);
             }
-            let amp = lobe.amplitude.xyz;
+            var amp = lobe.amplitude.xyz;
             let lambda = lobe.axis_sharpness.w;
-            if (any(amp != vec3<f32>(0.0)) && lambda > 0.0) {
+            if (params.half_vector != 0u) {
+                // keep_mass: the corners' integrals, each seen from its vertex's view (its
+                // unit-amplitude mass in amplitude.w, relight_render's vertex_masses).
+                let unit = unit_lobe_mass(lambda, dot(v, lobe.axis_sharpness.xyz));
+                if (unit > 0.0) {
+                    let want = l0.amplitude.xyz * (l0.amplitude.w * b.x)
+                        + l1.amplitude.xyz * (l1.amplitude.w * b.y)
+                        + l2.amplitude.xyz * (l2.amplitude.w * b.z);
+                    amp = clamp(want / unit, amp * 0.25, amp * 4.0);
+                }
+                if (any(amp != vec3<f32>(0.0)) && lambda > 0.0) {
+                    sum += integrate_half_vector(lobe.axis_sharpness.xyz, lambda, amp, v);
+                }
+            } else if (any(amp != vec3<f32>(0.0)) && lambda > 0.0) {
                 // One prefiltered fetch per term of the lobe kernel (relight_sphere::sg_kernel).
                 for (var j = 0u; j < 4u; j++) {
                     let w = params.kernel_weight[j];

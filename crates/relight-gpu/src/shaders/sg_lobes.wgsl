@@ -26,6 +26,11 @@ struct SgParams {
     ln_lambda: array<vec4<f32>, 4>,
     kernel_rate: vec4<f32>,
     kernel_weight: vec4<f32>,
+    env_from_world: array<vec4<f32>, 3>,
+    half_vector: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // relight_render::shade_sg::unit_integral_f32: 2 pi (1 - exp(-2 lambda)) / lambda.
