@@ -82,6 +82,16 @@ fn a_bake_killed_at_any_moment_resumes_to_the_same_bytes() {
     let chunks = std::fs::read_dir(d.join("b.relight.checkpoint")).map_or(0, |r| r.count());
     eprintln!("bake {full:?}; killed {kills} times; {chunks} chunk files left to resume from");
     let ckpt = d.join("b.relight.checkpoint");
+    if out.exists() && ckpt.exists() {
+        // The last kill landed after the bundle was renamed into place and before the folder
+        // was removed (checkpoint module docs; seen once in CI on a loaded machine, session
+        // 27): the bundle is complete, and a rerun with --resume rewrites the same bundle
+        // from the chunks and removes the folder.
+        let mut run = a.clone();
+        run.push("--resume");
+        let o = relight(&run);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
     if !out.exists() {
         // A rerun without --resume says what it found, and changes nothing.
         let o = relight(&a);

@@ -9,7 +9,11 @@
 //!   being written leaves only a temporary (cleaned by the next write), never a partial chunk.
 //! * A rerun without `resume` that finds the folder refuses, saying what it holds; with
 //!   `resume`, chunks of another split or scene are refused by name (settings are checked by
-//!   the final merge). The folder is removed once the bundle is written.
+//!   the final merge). The folder is removed once the bundle is written. A kill between the
+//!   bundle's rename and the folder's removal leaves both: the bundle is complete, and a
+//!   rerun with `resume` finds every chunk, writes the same bundle again and removes the
+//!   folder (no order of the two steps closes that window: removing the folder first would
+//!   lose the chunks to a kill before the rename).
 //! * What can be split can be checkpointed: `sh` with unshadowed or shadowed transfer (chunks
 //!   of vertices) and `sg` (chunks of flood-fill regions, so at most one chunk per region).
 
