@@ -324,7 +324,7 @@ mod tests {
         let resolve = resolve_src.as_str();
         let hybrid = [COMMON, LIGHT, include_str!("shaders/hybrid.wgsl")].concat();
         let lobes = include_str!("shaders/sg_lobes.wgsl");
-        let sg = [COMMON, lobes, include_str!("shaders/sg.wgsl")].concat();
+        let sg = crate::sg::shading_source();
         let sg_match = [lobes, include_str!("shaders/sg_match.wgsl")].concat();
         let o = |v: &[usize]| v.iter().map(|&x| x as u32).collect::<Vec<u32>>();
         type C = GpuCamera;
@@ -463,6 +463,11 @@ mod tests {
                     offset_of!(S, ln_lambda),
                     offset_of!(S, kernel_rate),
                     offset_of!(S, kernel_weight),
+                    offset_of!(S, env_from_world),
+                    offset_of!(S, half_vector),
+                    offset_of!(S, pad),
+                    offset_of!(S, pad) + 4,
+                    offset_of!(S, pad) + 8,
                 ]),
             ),
         ];

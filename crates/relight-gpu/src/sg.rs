@@ -25,6 +25,19 @@ use relight_scene::scene::Environment;
 use relight_sphere::half_vector;
 use std::time::Instant;
 
+/// The shading pass's WGSL: the camera, the lobes, `sg.wgsl`, and the half-vector lobes'
+/// table constants and functions (`sg_half.wgsl`).
+pub(crate) fn shading_source() -> String {
+    [
+        include_str!("shaders/common.wgsl"),
+        include_str!("shaders/sg_lobes.wgsl"),
+        include_str!("shaders/sg.wgsl"),
+        &half_vector_constants(),
+        include_str!("shaders/sg_half.wgsl"),
+    ]
+    .concat()
+}
+
 /// The grid of `relight_sphere::half_vector`'s table as WGSL constants (`sg_half.wgsl`).
 fn half_vector_constants() -> String {
     use half_vector::*;
@@ -81,16 +94,7 @@ impl<'a> SgGpuFrame<'a> {
             ],
         );
         let lobes_wgsl = include_str!("shaders/sg_lobes.wgsl");
-        let module = gpu.shader(
-            "sg",
-            &[
-                include_str!("shaders/common.wgsl"),
-                lobes_wgsl,
-                include_str!("shaders/sg.wgsl"),
-                &half_vector_constants(),
-                include_str!("shaders/sg_half.wgsl"),
-            ],
-        );
+        let module = gpu.shader("sg", &[&shading_source()]);
         let pipeline = pipeline::render_pipeline(
             gpu,
             "sg",
