@@ -10,7 +10,7 @@
 //! table of `relight_sphere::half_vector` (a storage buffer, five fetches per Gaussian
 //! term, `sg_half.wgsl`), their blends keeping the corners' integrals as the CPU's
 //! `keep_mass` (each vertex lobe's unit mass at its view, from
-//! `SgRenderer::vertex_masses`, rides in the uploaded lobe's fourth amplitude component).
+//! `SgFrame::masses`, rides in the uploaded lobe's fourth amplitude component).
 
 use crate::layout::{GpuLobe, GpuMatchParams, GpuSgParams, MAX_CHAIN_LEVELS};
 use crate::pipeline::{self, bind, dispatch_2d, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
@@ -323,7 +323,7 @@ impl GpuFrame for SgGpuFrame<'_> {
         let t0 = Instant::now();
         let frame = self.renderer.prepare(lighting, Vec3::from(camera.origin));
         // Half-vector bakes: each lobe's unit mass at its vertex's view rides in `w`.
-        let masses = self.renderer.vertex_masses(&frame);
+        let masses = &frame.masses;
         let lobes: Vec<GpuLobe> = frame
             .lobes
             .iter()

@@ -124,12 +124,19 @@ fn sh_bake() -> (Baked, Scene) {
 }
 
 fn sg_bake() -> (Baked, Scene) {
+    sg_bake_with(2, Default::default())
+}
+
+/// The conductor scene baked with `direct_lobes` lobes (6 x 8 x 8, no indirect lobe, SH
+/// order 3) and the fit settings `fit`.
+fn sg_bake_with(direct_lobes: usize, fit: relight_bake::sg::SgFitSettings) -> (Baked, Scene) {
     let settings = SgSettings {
         bake: relight_bake::sg::SgBakeSettings {
             direct_res: 8,
             indirect_lobes: 0,
-            direct_lobes: 2,
+            direct_lobes,
             diffuse_order: 3,
+            fit,
             ..Default::default()
         },
         blend: None,
@@ -555,23 +562,14 @@ fn what_the_gpu_does_not_render_is_refused_by_name() {
 #[test]
 fn sg_frame_with_half_vector_lobes_matches_the_cpu_frame() {
     let Some(gpu) = gpu() else { return };
-    let settings = SgSettings {
-        bake: relight_bake::sg::SgBakeSettings {
-            direct_res: 8,
-            indirect_lobes: 0,
-            direct_lobes: 1,
-            diffuse_order: 3,
-            fit: relight_bake::sg::SgFitSettings {
-                lobe_kernel: relight_bake::sg::SgKernel::Ggx,
-                lobe_domain: relight_bake::sg::SgDomain::HalfVector,
-                ..Default::default()
-            },
+    let (b, scene) = sg_bake_with(
+        1,
+        relight_bake::sg::SgFitSettings {
+            lobe_kernel: relight_bake::sg::SgKernel::Ggx,
+            lobe_domain: relight_bake::sg::SgDomain::HalfVector,
             ..Default::default()
         },
-        blend: None,
-    };
-    let (b, scene) = bake::<Sg>(&desc(CONDUCTOR), &settings);
-    let b: Baked = b.into();
+    );
     let fs = FrameSettings::Sg(relight_method::sg::SgFrameSettings {
         prefilter_size: 64,
         ..Default::default()

@@ -91,7 +91,9 @@ use relight_sphere::sh::rotate::ShRotation;
 use std::time::Instant;
 
 mod blend;
-pub use blend::{blend3, blend3_energy, blend3_with, keep_mass, match_corners, LobeBlend};
+pub use blend::{
+    blend3, blend3_energy, blend3_with, keep_mass, match_corners, unit_mass, LobeBlend,
+};
 
 /// Vertices per parallel work item of the per-vertex pass.
 const CHUNK: usize = 1024;
@@ -403,6 +405,10 @@ pub struct SgFrame {
     /// The lighting's `env_from_world` (the lobes' axes are in the map frame; so is the view
     /// a half-vector lobe is integrated for).
     pub env_from_world: Mat3,
+    /// Half-vector bakes: `masses[x * lobe_count + k]`, the [`unit_mass`] of lobe `k` of
+    /// vertex `x` seen from the view it was blended for ([`SgRenderer::vertex_masses`]):
+    /// what the corner blend keeps ([`keep_mass`]). Empty for light-domain bakes.
+    pub masses: Vec<f32>,
 }
 
 /// Where the time of one SG frame goes.
@@ -591,26 +597,25 @@ impl<'a> SgRenderer<'a> {
         self.blend_views(x, t, b, v, out);
     }
 
-    /// Half-vector bakes: for every lobe of `frame` (from [`SgRenderer::prepare`]), the
-    /// integral of its unit-amplitude shape seen from the view its vertex's lobes were
-    /// blended for ([`relight_sphere::half_vector::lobe_mass`]): what [`keep_mass`] keeps at
-    /// a pixel, precomputed per vertex for the GPU frame. Empty for light-domain bakes.
+    /// Half-vector bakes: [`SgFrame::masses`] of `frame`'s lobes (map frame, eye
+    /// `frame.eye`), each seen from the view its vertex's lobes were blended for (the
+    /// vertex's view, clamped as the bake clamps it). Empty for light-domain bakes.
+    /// [`SgRenderer::prepare`] fills them; a frame built by hand calls this.
     pub fn vertex_masses(&self, frame: &SgFrame) -> Vec<f32> {
         if self.bake.domain != SgDomain::HalfVector {
             return vec![];
         }
-        let n = frame.lobe_count;
+        let n = frame.lobe_count.max(1);
         let r = frame.env_from_world;
-        (0..frame.lobes.len())
-            .map(|i| {
-                let x = i / n.max(1);
-                let nx = self.mesh.normals[x];
-                let v = (frame.eye - self.mesh.positions[x]).normalize_or(nx);
-                let unit = SgLobe {
-                    amplitude: Vec3::ONE,
-                    ..frame.lobes[i]
-                };
-                half_vector::lobe_mass(self.bake.kernel, &unit, r * self.fitted_view(x, v)).x
+        frame
+            .lobes
+            .par_chunks(n)
+            .enumerate()
+            .flat_map_iter(|(x, lobes)| {
+                let to_eye =
+                    (frame.eye - self.mesh.positions[x]).normalize_or(self.mesh.normals[x]);
+                let v = r * self.fitted_view(x, to_eye);
+                lobes.iter().map(move |l| unit_mass(self.bake.kernel, l, v))
             })
             .collect()
     }
@@ -647,7 +652,8 @@ impl<'a> SgRenderer<'a> {
                 let corners = [0, 1, 2].map(|c| &l[c][p[c][k] as usize]);
                 let mut lobe = blend3_with(self.options.views, self.bake.kernel, corners, b);
                 if half {
-                    lobe = keep_mass(self.bake.kernel, lobe, corners, src, b, dst);
+                    let mass = [0, 1, 2].map(|c| unit_mass(self.bake.kernel, corners[c], src[c]));
+                    lobe = keep_mass(self.bake.kernel, lobe, corners, mass, b, dst);
                 }
                 *o.next().expect("out holds lobe_count lobes") = lobe;
             }
@@ -712,13 +718,16 @@ impl<'a> SgRenderer<'a> {
                     *d *= self.albedo[x] * view_factor(table, cos_i);
                 }
             });
-        SgFrame {
+        let mut frame = SgFrame {
             lobe_count: n,
             lobes,
             diffuse,
             eye,
             env_from_world: r,
-        }
+            masses: vec![],
+        };
+        frame.masses = self.vertex_masses(&frame);
+        frame
     }
 
     /// Radiance of a fragment: per-pixel blend of its triangle's vertex lobes, each
@@ -734,30 +743,26 @@ impl<'a> SgRenderer<'a> {
         let n = frame.lobe_count;
         let id = self.mesh.indices[f.tri as usize].map(|i| i as usize);
         let mut sum = f.interpolate(self.mesh, &frame.diffuse);
-        // The fragment's own view and the views its corners' lobes were blended for
-        // (`prepare`), needed by half-vector lobes only (map frame).
+        // The fragment's own view (map frame), needed by half-vector lobes only.
         let half = self.bake.domain == SgDomain::HalfVector;
-        let (v, src) = if half {
-            let r = frame.env_from_world;
-            let to_eye = |p: Vec3, n: Vec3| (frame.eye - p).normalize_or(n);
-            let src = id.map(|x| {
-                let n = self.mesh.normals[x];
-                r * self.fitted_view(x, to_eye(self.mesh.positions[x], n))
-            });
-            (r * to_eye(f.position, f.shading_normal), src)
+        let v = if half {
+            frame.env_from_world * (frame.eye - f.position).normalize_or(f.shading_normal)
         } else {
-            (Vec3::ZERO, [Vec3::ZERO; 3])
+            Vec3::ZERO
         };
         let mut start = 0;
         for count in self.component_lobes() {
-            let l = id.map(|x| &frame.lobes[x * n + start..x * n + start + count]);
+            let first = start;
+            let l = id.map(|x| &frame.lobes[x * n + first..x * n + first + count]);
             start += count;
             let p = self.permutations(self.options.match_corners, id, l);
             for k in 0..count {
-                let corners = [0, 1, 2].map(|c| &l[c][p[c][k] as usize]);
+                let slot = p.map(|pc| pc[k] as usize);
+                let corners = [0, 1, 2].map(|c| &l[c][slot[c]]);
                 let mut lobe = blend3_with(self.options.corners, self.bake.kernel, corners, f.bary);
                 if half {
-                    lobe = keep_mass(self.bake.kernel, lobe, corners, src, f.bary, v);
+                    let mass = [0, 1, 2].map(|c| frame.masses[id[c] * n + first + slot[c]]);
+                    lobe = keep_mass(self.bake.kernel, lobe, corners, mass, f.bary, v);
                 }
                 if lobe.amplitude != Vec3::ZERO && lobe.sharpness > 0.0 {
                     sum += lobe_integral(&lobe, v);
@@ -828,6 +833,9 @@ impl<'a> SgRenderer<'a> {
         assert_eq!(frame.lobe_count, self.lobe_count(), "lobes per vertex");
         assert_eq!(frame.lobes.len(), vc * frame.lobe_count, "lobes per vertex");
         assert_eq!(frame.diffuse.len(), vc, "diffuse per vertex");
+        if self.bake.domain == SgDomain::HalfVector {
+            assert_eq!(frame.masses.len(), frame.lobes.len(), "masses per lobe");
+        }
         raster::render_deferred(self.mesh, camera, None, opts, |f| {
             self.shade(frame, f, |l, v| self.integrate_lobe(l, v, &integrate))
         })

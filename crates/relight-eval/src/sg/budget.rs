@@ -50,8 +50,8 @@ use relight_method::sg::SgBaked;
 use relight_render::compare;
 use relight_render::raster::{self, RasterOptions};
 use relight_render::shade_sg::{
-    blend3_with, keep_mass, match_corners, prefilter_parallel, source_face_size, to_cube, SgFrame,
-    SgLighting, SgRenderer, ShadeOptions,
+    blend3_with, keep_mass, match_corners, prefilter_parallel, source_face_size, to_cube,
+    unit_mass, SgFrame, SgLighting, SgRenderer, ShadeOptions,
 };
 use relight_render::Image;
 use relight_scene::camera::Camera;
@@ -439,7 +439,8 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
                 let dst = ctx.clamped_view(x, view);
                 for (k, l) in blended.iter_mut().enumerate() {
                     let c = [0, 1, 2].map(|j| &corners[j][k]);
-                    *l = keep_mass(bake.kernel, *l, c, src, w, dst);
+                    let mass = [0, 1, 2].map(|j| unit_mass(bake.kernel, c[j], src[j]));
+                    *l = keep_mass(bake.kernel, *l, c, mass, w, dst);
                 }
             }
             [exact, blended].map(|mut l| {
@@ -450,12 +451,17 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             })
         })
         .collect();
-    let frame_of = |i: usize| SgFrame {
-        lobe_count: n,
-        lobes: vertex_frames.iter().flat_map(|f| f[i].clone()).collect(),
-        diffuse: prepared.diffuse.clone(),
-        eye: prepared.eye,
-        env_from_world: prepared.env_from_world,
+    let frame_of = |i: usize| {
+        let mut f = SgFrame {
+            lobe_count: n,
+            lobes: vertex_frames.iter().flat_map(|f| f[i].clone()).collect(),
+            diffuse: prepared.diffuse.clone(),
+            eye: prepared.eye,
+            env_from_world: prepared.env_from_world,
+            masses: vec![],
+        };
+        f.masses = renderer.vertex_masses(&f);
+        f
     };
     let integrate = |l: &SgLobe| dense.integrate(l);
     let vertex_fit = renderer

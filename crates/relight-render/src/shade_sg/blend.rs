@@ -112,38 +112,38 @@ pub fn blend3_energy(kernel: LobeKernel, l: [&SgLobe; 3], w: [f32; 3]) -> SgLobe
     }
 }
 
+/// The integral over the light directions of `l`'s shape at unit amplitude, seen from `v`
+/// ([`half_vector::lobe_mass`]): a half-vector lobe's integral per unit of amplitude.
+#[inline]
+pub fn unit_mass(kernel: LobeKernel, l: &SgLobe, v: Vec3) -> f32 {
+    let unit = SgLobe {
+        amplitude: Vec3::ONE,
+        ..*l
+    };
+    half_vector::lobe_mass(kernel, &unit, v).x
+}
+
 /// A half-vector lobe `blended` from `l` with weights `w` (module docs, "Half-vector
 /// lobes"), its amplitude rescaled per channel so that its integral over the light
-/// directions seen from `v` is `sum_j w_j int l_j` with corner `j`'s integral seen from the
-/// view `src[j]` it was made for ([`half_vector::lobe_mass`]). The factor is bounded to
-/// `[1/4, 4]` of the blend's own amplitude (as the bake's energy rescaling), so a view that
-/// barely reaches the lobe (`v . m` near 0) does not blow it up; a lobe that `v` does not
-/// reach is returned as blended.
+/// directions seen from `v` is `sum_j w_j a_j mass_j`, with `mass_j` corner `j`'s
+/// [`unit_mass`] seen from the view it was made for. The factor is bounded to `[1/4, 4]` of
+/// the blend's own amplitude (as the bake's energy rescaling), so a view that barely reaches
+/// the lobe (`v . m` near 0) does not blow it up; a lobe that `v` does not reach is returned
+/// as blended.
 #[inline]
 pub fn keep_mass(
     kernel: LobeKernel,
     blended: SgLobe,
     l: [&SgLobe; 3],
-    src: [Vec3; 3],
+    mass: [f32; 3],
     w: [f32; 3],
     v: Vec3,
 ) -> SgLobe {
-    let unit = half_vector::lobe_mass(
-        kernel,
-        &SgLobe {
-            amplitude: Vec3::ONE,
-            ..blended
-        },
-        v,
-    )
-    .x;
+    let unit = unit_mass(kernel, &blended, v);
     if unit.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return blended;
     }
-    let target: Vec3 = (0..3)
-        .filter(|&j| w[j] != 0.0 && l[j].amplitude != Vec3::ZERO)
-        .map(|j| half_vector::lobe_mass(kernel, l[j], src[j]) * w[j])
-        .sum();
+    let target: Vec3 = (0..3).map(|j| l[j].amplitude * (mass[j] * w[j])).sum();
     let a = blended.amplitude;
     SgLobe {
         amplitude: (target / unit).clamp(a * 0.25, a * 4.0),
@@ -308,7 +308,8 @@ mod tests {
             let want: f32 = (0..3).map(|j| energy[j] * w[j]).sum();
             let corners = [&l[0], &l[1], &l[2]];
             let plain = blend3(corners, w);
-            let kept = keep_mass(kernel, plain, corners, src, w, v);
+            let mass = [0, 1, 2].map(|j| unit_mass(kernel, &l[j], src[j]));
+            let kept = keep_mass(kernel, plain, corners, mass, w, v);
             let got = half_vector::lobe_mass(kernel, &kept, v).x;
             assert!((got / want - 1.0).abs() < 1e-4, "{w:?}: {got} vs {want}");
             let control = half_vector::lobe_mass(kernel, &plain, v).x / want - 1.0;
