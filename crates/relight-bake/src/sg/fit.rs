@@ -366,7 +366,10 @@ fn relax<S: TransportSource + ?Sized>(
                 let r = shared
                     .iter()
                     .enumerate()
-                    .map(|(ci, c)| relax_vertex(c, adj, x as usize, component_data(buf, ci), mask))
+                    .map(|(ci, c)| {
+                        let views = data_views(buf, &c.fit);
+                        relax_vertex(c, adj, x as usize, component_data(buf, ci), views, mask)
+                    })
                     .collect();
                 progress.inc(1);
                 r
@@ -387,6 +390,16 @@ fn relax<S: TransportSource + ?Sized>(
         (flips, flagged) = count_flips(comps, adj);
     }
     (before, flips)
+}
+
+/// The direction each view's data was computed for: the transport's own (clamped above the
+/// horizon; what the half-vector domain moves the data by), else the icosahedron's.
+fn data_views<'a>(buf: &'a VertexTransport, c: &'a ComponentFit) -> &'a [glam::Vec3] {
+    if buf.view_dirs.len() == c.views() {
+        &buf.view_dirs
+    } else {
+        &c.view_dirs
+    }
 }
 
 fn component_data(buf: &VertexTransport, component: usize) -> &[glam::Vec3] {
@@ -443,11 +456,7 @@ fn fill_region<S: TransportSource + ?Sized>(
                     data: component_data(&buf, ci),
                     warm: parent.map(|j| &done[j].lobes[..]),
                     spatial: &spatial,
-                    views: if buf.view_dirs.len() == c.views() {
-                        &buf.view_dirs
-                    } else {
-                        &c.view_dirs
-                    },
+                    views: data_views(&buf, c),
                     relax: None,
                 },
             );
@@ -465,6 +474,7 @@ fn relax_vertex(
     adj: &Adjacency,
     x: usize,
     data: &[glam::Vec3],
+    views: &[glam::Vec3],
     mask: u128,
 ) -> VertexFit {
     let nview = c.fit.views();
@@ -491,10 +501,7 @@ fn relax_vertex(
             data,
             warm: Some(&warm),
             spatial: &spatial,
-            // Relaxation only runs with flips, i.e. two or more lobes: light domain only
-            // (settings refuse more than one half-vector lobe), so the views are the
-            // icosahedron's.
-            views: &c.fit.view_dirs,
+            views,
             relax: Some(mask),
         },
     )
