@@ -107,6 +107,10 @@ pub struct SgBake {
     /// ([`transport::clamp_view`]). The frame of a half-vector bake needs the view each lobe
     /// was fitted for.
     pub horizon_deg: f32,
+    /// How the fit ordered `N >= 2` lobes (the fit's [`SgFitSettings::lobe_order`]):
+    /// [`LobeOrder::Nested`] lobes correspond slot by slot by construction, so the frame
+    /// does not re-match them (`relight_render::shade_sg::ShadeOptions::default_for`).
+    pub lobe_order: LobeOrder,
 }
 
 impl SgBake {
@@ -150,6 +154,7 @@ impl SgBake {
             kernel: Default::default(),
             domain: Default::default(),
             horizon_deg: SgBakeSettings::default().horizon_deg,
+            lobe_order: LobeOrder::default(),
         }
     }
 }
@@ -226,7 +231,9 @@ pub enum SgDomain {
     /// `a K(1 - mu . h(w))` in the half vector `h(w) = normalize(w + v)` of the view `v`: a
     /// GGX lobe's own variable, so that one lobe follows the reflection's stretch along the
     /// plane of incidence at grazing views. Rendered with five prefiltered lookups per
-    /// Gaussian term (`relight_sphere::half_vector`); one lobe per component.
+    /// Gaussian term (`relight_sphere::half_vector`); more than one lobe per component only
+    /// [`LobeOrder::Nested`] (jointly fitted ones were measured worse with each added lobe,
+    /// docs/RESULTS.md §8 session 28).
     HalfVector,
 }
 
@@ -583,5 +590,6 @@ fn assemble(
         kernel: settings.fit.lobe_kernel.kernel(),
         domain: settings.fit.lobe_domain,
         horizon_deg: settings.horizon_deg,
+        lobe_order: settings.fit.lobe_order,
     }
 }

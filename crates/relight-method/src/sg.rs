@@ -448,6 +448,7 @@ fn from_part(p: SgPart, s: &SgBakeSettings) -> (SgBake, SgPartRows) {
         kernel: s.fit.lobe_kernel.kernel(),
         domain: s.fit.lobe_domain,
         horizon_deg: s.horizon_deg,
+        lobe_order: s.fit.lobe_order,
     };
     let rows = SgPartRows {
         vertices: p.fit.vertices,

@@ -26,7 +26,8 @@
 //!    near the normal from view to view), then rescaled to keep the blend of the corners'
 //!    integrals, each seen from the view it was fitted or blended for ([`keep_mass`]: a
 //!    lobe's integral over `w` depends on the view), and its corners are blended linearly by
-//!    default ([`ShadeOptions::default_for`]).
+//!    default; two or more of its lobes are nested and blended slot by slot, unmatched
+//!    ([`ShadeOptions::default_for`]).
 //!
 //! # Conventions
 //! * Lobes are [`SgLobe`]s `a exp(lambda (mu . w - 1))` with axes in the **world** frame in
@@ -72,7 +73,7 @@ use glam::{Mat3, Vec3, Vec3A};
 use rayon::prelude::*;
 use relight_bake::sg::transport::clamp_view;
 use relight_bake::sg::SgBake;
-use relight_bake::sg::SgDomain;
+use relight_bake::sg::{LobeOrder, SgDomain};
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
@@ -455,18 +456,24 @@ impl ShadeOptions {
         match_corners: true,
     };
 
-    /// The default interpolation of a bake whose lobes are in `domain`: [`Self::default`]
-    /// for light-domain lobes. Half-vector lobes keep their integrals across both blends
-    /// ([`keep_mass`]), so the corners' energy blend only weights their shapes by energy;
-    /// blending them linearly instead measured better on all five scenes of the evaluation,
-    /// by 0 to 1.7 points (docs/RESULTS.md §8, session 27: the Spot conductor 10.9 -> 9.2 %).
-    pub fn default_for(domain: SgDomain) -> ShadeOptions {
-        match domain {
-            SgDomain::Light => ShadeOptions::default(),
-            SgDomain::HalfVector => ShadeOptions {
+    /// The default interpolation of a bake whose lobes are in `domain`, ordered by `order`:
+    /// [`Self::default`] for light-domain lobes. Half-vector lobes keep their integrals
+    /// across both blends ([`keep_mass`]), so the corners' energy blend only weights their
+    /// shapes by energy; blending them linearly instead measured better on all five scenes
+    /// of the evaluation, by 0 to 1.7 points (docs/RESULTS.md §8, session 27: the Spot
+    /// conductor 10.9 -> 9.2 %). Half-vector bakes of two or more lobes are nested (the
+    /// settings refuse others): slot 1 is the one-lobe fit at every (vertex, view) and slot
+    /// `k` the `k`-th lobe found, so the slots already correspond and re-matching them by
+    /// axis distance can only pair a residual lobe with a main one; they are blended slot
+    /// by slot (Spot, two lobes: 9.4 % matched, 8.6 % not; docs/RESULTS.md §8, session 28).
+    pub fn default_for(domain: SgDomain, order: LobeOrder) -> ShadeOptions {
+        match (domain, order) {
+            (SgDomain::Light, _) => ShadeOptions::default(),
+            (SgDomain::HalfVector, LobeOrder::Joint) => ShadeOptions {
                 corners: LobeBlend::Linear,
                 ..ShadeOptions::default()
             },
+            (SgDomain::HalfVector, LobeOrder::Nested) => ShadeOptions::PAPER,
         }
     }
 }
@@ -552,7 +559,7 @@ impl<'a> SgRenderer<'a> {
         SgRenderer {
             mesh,
             bake,
-            options: ShadeOptions::default_for(bake.domain),
+            options: ShadeOptions::default_for(bake.domain, bake.lobe_order),
             views,
             albedo,
             view_tables,

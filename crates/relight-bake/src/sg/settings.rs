@@ -136,27 +136,31 @@ impl SgBakeSettings {
                 self.direct_lobes
             ));
         }
-        if self.fit.lobe_kernel != super::SgKernel::Gaussian
-            && (self.direct_lobes > 1 || self.indirect_lobes > 1)
-        {
-            // Measured: 2 and 3 lobes of the GGX kernel are worse than 1 on Fig. 3-5 and on
-            // the sphere test scene (docs/RESULTS.md §8); more lobes must never be worse.
+        let many = self.direct_lobes > 1 || self.indirect_lobes > 1;
+        let half = self.fit.lobe_domain == super::SgDomain::HalfVector;
+        if self.fit.lobe_kernel != super::SgKernel::Gaussian && many && !half {
+            // Measured: 2 and 3 light-domain lobes of the GGX kernel are worse than 1 on
+            // Fig. 3-5 and on the sphere test scene (docs/RESULTS.md §8); more lobes must
+            // never be worse.
             return err(format!(
-                "fit.lobe_kernel {} fits one lobe per component (direct_lobes {}, indirect_lobes {} \
-                 given): with more its renders can get worse (docs/RESULTS.md §8); use the \
-                 gaussian kernel for more lobes",
+                "fit.lobe_kernel {} fits one light-domain lobe per component (direct_lobes {}, \
+                 indirect_lobes {} given): with more its renders can get worse (docs/RESULTS.md \
+                 §8); use the gaussian kernel, or the half-vector domain with nested lobes",
                 self.fit.lobe_kernel.kernel().name(),
                 self.direct_lobes,
                 self.indirect_lobes
             ));
         }
-        if self.fit.lobe_domain == super::SgDomain::HalfVector {
-            // One lobe per component is what was measured (docs/RESULTS.md §8, session 26);
-            // the moments shape is a light-domain construction.
-            if self.direct_lobes > 1 || self.indirect_lobes > 1 {
+        if half {
+            // Jointly fitted half-vector lobes were measured worse with each added lobe (Spot:
+            // 8.5 / 11.5 / 13.8 %): a residual lobe's axis drifts between (vertex, view)s and
+            // shows as blotches once seen from another view. Nested lobes keep slot 1 the
+            // one-lobe fit (docs/RESULTS.md §8, session 28).
+            if many && self.fit.lobe_order != super::LobeOrder::Nested {
                 return err(format!(
-                    "fit.lobe_domain half-vector fits one lobe per component (direct_lobes {}, \
-                     indirect_lobes {} given); use the light domain for more lobes",
+                    "fit.lobe_domain half-vector fits more than one lobe per component only \
+                     with fit.lobe_order nested (direct_lobes {}, indirect_lobes {} given; \
+                     pass --lobe-order nested)",
                     self.direct_lobes, self.indirect_lobes
                 ));
             }
@@ -330,7 +334,8 @@ mod tests {
         f.validate().unwrap();
     }
 
-    /// The GGX kernel is for one lobe per component (more were measured worse).
+    /// The GGX kernel takes one light-domain lobe per component (more were measured worse);
+    /// more only in the half-vector domain with nested lobes.
     #[test]
     fn the_ggx_kernel_takes_one_lobe_per_component() {
         let mut s = SgBakeSettings {
@@ -340,7 +345,7 @@ mod tests {
         s.fit.lobe_kernel = super::super::SgKernel::Ggx;
         let e = s.validate().unwrap_err().to_string();
         assert!(
-            e.contains("fits one lobe per component") && e.contains("direct_lobes 2"),
+            e.contains("fits one light-domain lobe per component") && e.contains("direct_lobes 2"),
             "{e}"
         );
         s.direct_lobes = 1;
@@ -348,11 +353,15 @@ mod tests {
         assert!(s.validate().is_err());
         s.indirect_lobes = 1;
         s.validate().unwrap();
+        s.direct_lobes = 3;
+        s.fit.lobe_domain = super::super::SgDomain::HalfVector;
+        s.fit.lobe_order = super::super::LobeOrder::Nested;
+        s.validate().unwrap();
     }
 
-    /// The half-vector domain is for one lobe per component, least-squares shape.
+    /// The half-vector domain takes least-squares lobes, and more than one only nested.
     #[test]
-    fn the_half_vector_domain_takes_one_least_squares_lobe() {
+    fn the_half_vector_domain_takes_nested_least_squares_lobes() {
         let mut s = SgBakeSettings {
             direct_lobes: 2,
             ..SgBakeSettings::default()
@@ -360,9 +369,11 @@ mod tests {
         s.fit.lobe_domain = super::super::SgDomain::HalfVector;
         let e = s.validate().unwrap_err().to_string();
         assert!(
-            e.contains("half-vector") && e.contains("direct_lobes 2"),
+            e.contains("half-vector") && e.contains("nested") && e.contains("direct_lobes 2"),
             "{e}"
         );
+        s.fit.lobe_order = super::super::LobeOrder::Nested;
+        s.validate().unwrap();
         s.direct_lobes = 1;
         s.fit.lobe_shape = super::super::LobeShape::Moments;
         let e = s.validate().unwrap_err().to_string();

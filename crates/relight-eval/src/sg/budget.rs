@@ -425,7 +425,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
             let (tri, w) = views.locate(view);
             let ids = views.triangles()[tri].map(|j| j as usize);
             let corners = ids.map(|j| fit_view(t, views.vertices()[j]));
-            let mut blended = blend_corners(
+            let (mut blended, perm) = blend_corners(
                 b.shade,
                 bake.kernel,
                 ids,
@@ -433,12 +433,13 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
                 w,
             );
             if half {
-                // As the frame blends half-vector lobes across views (one lobe per
-                // component in this domain, so no permutation).
+                // As the frame blends half-vector lobes across views (slot by slot unless
+                // the frame matches them: its lobes are nested, and `fit_alone`'s greedy
+                // fit finds them in that order), keeping the corners' integrals.
                 let src = ids.map(|j| ctx.clamped_view(x, views.vertices()[j]));
                 let dst = ctx.clamped_view(x, view);
                 for (k, l) in blended.iter_mut().enumerate() {
-                    let c = [0, 1, 2].map(|j| &corners[j][k]);
+                    let c = [0, 1, 2].map(|j| &corners[j][perm[j][k] as usize]);
                     let mass = [0, 1, 2].map(|j| unit_mass(bake.kernel, c[j], src[j]));
                     *l = keep_mass(bake.kernel, *l, c, mass, w, dst);
                 }
@@ -515,14 +516,15 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
 const SUPERSAMPLE: u32 = 4;
 
 /// Blends the lobes of three views `ids` with weights `w` as the frame does (matching to the
-/// view of lowest index when `shade.match_views`).
+/// view of lowest index when `shade.match_views`); also returns each view's permutation
+/// (slot `k` took lobe `p[c][k]` of view `c`).
 fn blend_corners(
     shade: ShadeOptions,
     kernel: LobeKernel,
     ids: [usize; 3],
     l: [&[SgLobe]; 3],
     w: [f32; 3],
-) -> Vec<SgLobe> {
+) -> (Vec<SgLobe>, [[u8; 10]; 3]) {
     let identity: [u8; 10] = std::array::from_fn(|k| k as u8);
     let mut p = [identity; 3];
     if shade.match_views && l[0].len() > 1 {
@@ -531,7 +533,7 @@ fn blend_corners(
             p[c] = match_corners(l[r], l[c]);
         }
     }
-    (0..l[0].len())
+    let blended = (0..l[0].len())
         .map(|k| {
             blend3_with(
                 shade.views,
@@ -540,7 +542,8 @@ fn blend_corners(
                 w,
             )
         })
-        .collect()
+        .collect();
+    (blended, p)
 }
 
 /// Shades every sample covered by the mesh (`SUPERSAMPLE`^2 per pixel) with `f(point,

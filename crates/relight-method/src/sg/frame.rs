@@ -6,7 +6,7 @@ use super::SgBaked;
 use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
 use crate::PrepareTimes;
 use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
-use relight_bake::sg::SgDomain;
+use relight_bake::sg::{LobeOrder, SgDomain};
 use relight_render::shade_sg::{LobeBlend, SgLighting, SgRenderer, ShadeOptions};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
@@ -31,9 +31,11 @@ pub struct SgFrameSettings {
     /// in the light domain, linear for one in the half-vector domain]
     #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum))]
     pub corner_blend: Option<SgBlend>,
-    /// Which blends permute lobes to a reference's before blending (section 3.4's flips).
-    #[cfg_attr(feature = "cli", arg(long = "sg-match", value_enum, default_value_t = SgFrameSettings::default().matching))]
-    pub matching: SgMatch,
+    /// Which blends permute lobes to a reference's before blending (section 3.4's flips)
+    /// [default: both, or none for a half-vector bake, whose nested lobes correspond slot
+    /// by slot]
+    #[cfg_attr(feature = "cli", arg(long = "sg-match", value_enum))]
+    pub matching: Option<SgMatch>,
 }
 
 /// A lobe blend of the frame (`relight_render::shade_sg::LobeBlend`).
@@ -81,35 +83,41 @@ impl std::fmt::Display for SgMatch {
 }
 
 impl SgFrameSettings {
-    /// The renderer's interpolation options for a bake whose lobes are in `domain` (the
-    /// corners' default depends on it: `ShadeOptions::default_for`).
-    pub fn shade_options(&self, domain: SgDomain) -> ShadeOptions {
+    /// The renderer's interpolation options for a bake whose lobes are in `domain`, ordered
+    /// by `order` (what is not set takes `ShadeOptions::default_for`).
+    pub fn shade_options(&self, domain: SgDomain, order: LobeOrder) -> ShadeOptions {
         let blend = |b| match b {
             SgBlend::Linear => LobeBlend::Linear,
             SgBlend::Energy => LobeBlend::Energy,
         };
+        let by_bake = ShadeOptions::default_for(domain, order);
+        let (match_views, match_corners) = match self.matching {
+            None => (by_bake.match_views, by_bake.match_corners),
+            Some(m) => (
+                matches!(m, SgMatch::Views | SgMatch::Both),
+                matches!(m, SgMatch::Corners | SgMatch::Both),
+            ),
+        };
         ShadeOptions {
             views: blend(self.view_blend),
-            match_views: matches!(self.matching, SgMatch::Views | SgMatch::Both),
-            corners: self
-                .corner_blend
-                .map_or(ShadeOptions::default_for(domain).corners, blend),
-            match_corners: matches!(self.matching, SgMatch::Corners | SgMatch::Both),
+            match_views,
+            corners: self.corner_blend.map_or(by_bake.corners, blend),
+            match_corners,
         }
     }
 }
 
 impl Default for SgFrameSettings {
     /// A 128-texel finest level; the renderer's default interpolation
-    /// (`ShadeOptions::default_for`: views linear, corners by energy or, for half-vector
-    /// lobes, linearly, lobes matched in both; the test
-    /// `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
+    /// (`ShadeOptions::default_for`: views linear; light-domain lobes matched in both blends,
+    /// corners by energy; half-vector lobes corners linear, matched only if jointly fitted;
+    /// the test `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
     fn default() -> Self {
         SgFrameSettings {
             prefilter_size: 128,
             view_blend: SgBlend::Linear,
             corner_blend: None,
-            matching: SgMatch::Both,
+            matching: None,
         }
     }
 }
@@ -132,7 +140,7 @@ impl<'a> SgFrame<'a> {
         Ok(SgFrame {
             baked,
             renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake)
-                .with_options(s.shade_options(baked.bake.domain)),
+                .with_options(s.shade_options(baked.bake.domain, baked.bake.lobe_order)),
             prefilter_size: s.prefilter_size,
             lighting: None,
         })

@@ -268,6 +268,7 @@ pub(super) fn load(b: &Bundle, path: &Path) -> Result<SgBaked, MethodError> {
             kernel: settings.bake.fit.lobe_kernel.kernel(),
             domain: settings.bake.fit.lobe_domain,
             horizon_deg: settings.bake.horizon_deg,
+            lobe_order: settings.bake.fit.lobe_order,
         },
         settings,
         record,

@@ -103,6 +103,7 @@ fn baked(f16: bool) -> SgBaked {
             kernel: settings.bake.fit.lobe_kernel.kernel(),
             domain: settings.bake.fit.lobe_domain,
             horizon_deg: settings.bake.horizon_deg,
+            lobe_order: settings.bake.fit.lobe_order,
         },
         settings,
         record: BakeRecord {
@@ -322,36 +323,49 @@ fn a_small_bake_through_the_seam_renders_and_refuses_other_methods() {
 fn frame_settings_map_onto_the_renderers_interpolation() {
     use relight_render::shade_sg::{LobeBlend, ShadeOptions};
     // The default settings are the renderer's default, so `relight render` and the library
-    // agree, in both lobe domains.
-    use relight_bake::sg::SgDomain;
+    // agree, in both lobe domains and for both lobe orders.
+    use relight_bake::sg::{LobeOrder, SgDomain};
     for domain in [SgDomain::Light, SgDomain::HalfVector] {
+        for order in [LobeOrder::Joint, LobeOrder::Nested] {
+            assert_eq!(
+                SgFrameSettings::default().shade_options(domain, order),
+                ShadeOptions::default_for(domain, order)
+            );
+        }
+    }
+    for order in [LobeOrder::Joint, LobeOrder::Nested] {
         assert_eq!(
-            SgFrameSettings::default().shade_options(domain),
-            ShadeOptions::default_for(domain)
+            ShadeOptions::default_for(SgDomain::Light, order),
+            ShadeOptions::default()
         );
     }
+    let joint = ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Joint);
     assert_eq!(
-        ShadeOptions::default_for(SgDomain::Light),
-        ShadeOptions::default()
+        (joint.corners, joint.match_views, joint.match_corners),
+        (LobeBlend::Linear, true, true)
     );
+    // Nested half-vector lobes correspond slot by slot: not re-matched.
     assert_eq!(
-        ShadeOptions::default_for(SgDomain::HalfVector).corners,
-        LobeBlend::Linear
+        ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Nested),
+        ShadeOptions::PAPER
     );
     let paper = SgFrameSettings {
         view_blend: SgBlend::Linear,
         corner_blend: Some(SgBlend::Linear),
-        matching: SgMatch::None,
+        matching: Some(SgMatch::None),
         ..Default::default()
     };
-    assert_eq!(paper.shade_options(SgDomain::Light), ShadeOptions::PAPER);
+    assert_eq!(
+        paper.shade_options(SgDomain::Light, LobeOrder::Joint),
+        ShadeOptions::PAPER
+    );
     let o = SgFrameSettings {
         view_blend: SgBlend::Energy,
         corner_blend: Some(SgBlend::Linear),
-        matching: SgMatch::Corners,
+        matching: Some(SgMatch::Corners),
         ..Default::default()
     }
-    .shade_options(SgDomain::Light);
+    .shade_options(SgDomain::HalfVector, LobeOrder::Nested);
     assert_eq!(
         (o.views, o.match_views, o.corners, o.match_corners),
         (LobeBlend::Energy, false, LobeBlend::Linear, true)
