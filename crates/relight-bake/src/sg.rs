@@ -167,7 +167,9 @@ impl SgBake {
 pub enum LobeOrder {
     /// All `N` lobes refined together from the warm start (the neighbour's lobes), then
     /// permuted to match the neighbours: the paper's fit (eq. 2.2), and every bake before
-    /// issue 10, and the default (docs/RESULTS.md §8: nested made the 2-lobe renders worse).
+    /// issue 10, and the default (docs/RESULTS.md §8: in the light domain nested made the
+    /// 2-lobe renders worse). The half-vector domain refuses it beyond one lobe (jointly
+    /// fitted half-vector lobes got worse with each added lobe, session 28).
     #[default]
     Joint,
     /// Lobe `k` added on the residual of the first `k - 1` and all `k` refined, `k = 1..N`:

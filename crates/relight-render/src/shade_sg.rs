@@ -465,7 +465,7 @@ impl ShadeOptions {
     /// settings refuse others): slot 1 is the one-lobe fit at every (vertex, view) and slot
     /// `k` the `k`-th lobe found, so the slots already correspond and re-matching them by
     /// axis distance can only pair a residual lobe with a main one; they are blended slot
-    /// by slot (Spot, two lobes: 9.4 % matched, 8.6 % not; docs/RESULTS.md §8, session 28).
+    /// by slot (Spot, two lobes: 10.0 % matched, 9.3 % not; docs/RESULTS.md §8, session 28).
     pub fn default_for(domain: SgDomain, order: LobeOrder) -> ShadeOptions {
         match (domain, order) {
             (SgDomain::Light, _) => ShadeOptions::default(),
