@@ -32,7 +32,7 @@
 
 pub mod fit;
 mod settings;
-pub use settings::{MAX_LOBES, MAX_REGIONS};
+pub use settings::{LobeSetting, MAX_LOBES, MAX_REGIONS};
 pub mod transport;
 
 use relight_scene::material::Material;
@@ -291,9 +291,12 @@ pub struct SgFitSettings {
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().fit_start))]
     pub fit_start: FitStart,
     /// How `N >= 2` lobes are fitted ([`LobeOrder`]). Bundles written before this setting
-    /// existed were fitted [`LobeOrder::Joint`].
+    /// existed were fitted [`LobeOrder::Joint`]. Without any lobe option (kernel, domain,
+    /// order, shape) `relight bake` and `relight eval` choose the kernel, domain and order by
+    /// the scene's materials ([`LobeSetting::for_materials`]: a GGX conductor gets ggx,
+    /// half-vector, nested; other scenes gaussian, light, joint).
     #[serde(default)]
-    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_order))]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, hide_default_value = true, default_value_t = SgFitSettings::default().lobe_order))]
     pub lobe_order: LobeOrder,
     /// The lobes' shape after the fit ([`LobeShape`]). Bundles written before this setting
     /// existed were fitted [`LobeShape::LeastSquares`].
@@ -301,14 +304,14 @@ pub struct SgFitSettings {
     #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_shape))]
     pub lobe_shape: LobeShape,
     /// The lobes' radial shape ([`SgKernel`]). Bundles written before this setting existed
-    /// were fitted with Gaussians.
+    /// were fitted with Gaussians. Default: by the scene's materials (see --lobe-order).
     #[serde(default)]
-    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_kernel))]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, hide_default_value = true, default_value_t = SgFitSettings::default().lobe_kernel))]
     pub lobe_kernel: SgKernel,
     /// The lobes' variable ([`SgDomain`]). Bundles written before this setting existed were
-    /// fitted in the light direction.
+    /// fitted in the light direction. Default: by the scene's materials (see --lobe-order).
     #[serde(default)]
-    #[cfg_attr(feature = "cli", arg(long, value_enum, default_value_t = SgFitSettings::default().lobe_domain))]
+    #[cfg_attr(feature = "cli", arg(long, value_enum, hide_default_value = true, default_value_t = SgFitSettings::default().lobe_domain))]
     pub lobe_domain: SgDomain,
     /// Independent flood-fill regions (the unit of parallel work); 0 = automatic.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().regions))]

@@ -246,6 +246,15 @@ pub fn given(m: &ArgMatches, id: &str) -> bool {
     m.try_get_raw(id).is_ok() && m.value_source(id) == Some(ValueSource::CommandLine)
 }
 
+/// Whether any of the `sg` lobe options (kernel, domain, order, shape) was given: without
+/// them `bake` and `eval` choose the lobes by the scene's materials
+/// (`relight_bake::sg::LobeSetting::for_materials`).
+pub fn sg_lobes_given(m: &ArgMatches) -> bool {
+    ["lobe_kernel", "lobe_domain", "lobe_order", "lobe_shape"]
+        .iter()
+        .any(|id| given(m, id))
+}
+
 /// Human lines or one JSON summary on stdout.
 pub struct Out {
     /// Print JSON instead of text.

@@ -207,7 +207,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             bake_with::<Sh>(input, &s, &a, &ctx, &what)?
         }
         relight_method::BakeKind::Sg => {
-            let s = SgSettings {
+            let mut s = SgSettings {
                 bake: SgBakeSettings {
                     diffuse_order: a.sh_order,
                     max_depth: a.bounces.unwrap_or(SgBakeSettings::default().max_depth),
@@ -216,6 +216,14 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 },
                 blend: a.blend.blend()?,
             };
+            if !args::sg_lobes_given(m) {
+                let why;
+                (s, why) = s.with_lobes_for(&scene.materials);
+                eprintln!(
+                    "sg lobes: {} ({why}; --lobe-kernel, --lobe-domain, --lobe-order choose others)",
+                    s.bake.fit.lobes().describe()
+                );
+            }
             bake_with::<Sg>(input, &s, &a, &ctx, &what)?
         }
         relight_method::BakeKind::Cuts => {

@@ -237,6 +237,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                 experiments,
                 settings,
                 lobes: direct_lobes(m)?,
+                lobes_by_material: !args::sg_lobes_given(m),
                 budget: a.budget,
                 spp: a.spp,
                 width: a.width,

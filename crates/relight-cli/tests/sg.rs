@@ -329,3 +329,50 @@ fn blended_material_bake_records_per_vertex_materials() {
     assert!(n >= 5, "{line}");
     assert!(line.contains("blend to"), "{line}");
 }
+
+/// Needs the SG bake. Without lobe options the bake chooses the lobes by the scene's
+/// materials (`LobeSetting::for_materials`: the half-vector GGX lobes, nested, for a GGX
+/// conductor; the light-domain Gaussians otherwise), says so, and records it; a lobe option
+/// given keeps the user's setting.
+#[test]
+fn lobes_are_chosen_by_material_unless_an_option_is_given() {
+    let d = tmpdir("sg", "lobes");
+    let plastic = scene(&d);
+    let conductor = d.join("conductor.json");
+    std::fs::write(
+        &conductor,
+        r#"{
+  "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "rings": 6,
+              "material": {"type": "ggx_conductor", "specular": [0.9, 0.8, 0.6], "alpha": 0.2}}],
+  "environment": {"type": "constant", "radiance": [1, 1, 1]},
+  "camera": {"origin": [0, 0, 4], "target": [0, 0, 0], "up": [0, 1, 0],
+             "fov_deg": 40, "width": 16, "height": 12}
+}"#,
+    )
+    .unwrap();
+    let info = |b: &Path| {
+        let o = relight(&["info", b.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let half = "ggx, half-vector domain, nested";
+    let light = "gaussian, light domain, joint";
+    for (sc, extra, chosen, recorded) in [
+        (&conductor, &[][..], Some(half), half),
+        (&conductor, &["--direct-lobes", "2"][..], Some(half), half),
+        (&conductor, &["--lobe-domain", "light"][..], None, light),
+        (&plastic, &[][..], Some(light), light),
+    ] {
+        let b = d.join("b.relight");
+        let _ = std::fs::remove_file(&b);
+        let o = bake_sg(sc, &b, &[&["--indirect-lobes", "0"], extra].concat());
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        match chosen {
+            Some(c) => assert!(e.contains(&format!("sg lobes: {c} (")), "{extra:?}: {e}"),
+            None => assert!(!e.contains("sg lobes:"), "{extra:?}: {e}"),
+        }
+        let i = info(&b);
+        assert!(i.contains(&format!("({recorded})")), "{extra:?}: {i}");
+    }
+}

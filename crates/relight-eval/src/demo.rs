@@ -233,14 +233,17 @@ pub fn run(o: &DemoOptions) -> Result<(PathBuf, PathBuf)> {
     };
     let sh = bake::<Sh>(&desc, &scene, &sh_settings)?;
     sh.write(&o.out.join("demo.relight"))?;
-    let sg_settings = SgSettings {
+    // The lobes `relight bake` chooses for the scene's materials (a GGX conductor: the
+    // half-vector GGX lobes).
+    let (sg_settings, _) = SgSettings {
         bake: SgBakeSettings {
             indirect_lobes: 0,
             seed: 1,
             ..Default::default()
         },
         blend: None,
-    };
+    }
+    .with_lobes_for(&gscene.materials);
     let sg = bake::<Sg>(&gdesc, &gscene, &sg_settings)?;
     sg.write(&o.out.join("demo_sg.relight"))?;
     let Baked::Sh(sh_baked) = &sh else {

@@ -166,6 +166,10 @@ pub struct SgEval {
     pub settings: SgSettings,
     /// Direct lobe counts to bake and score each experiment with (at least one).
     pub lobes: Vec<usize>,
+    /// Choose each experiment's lobe kernel, domain and order by its materials
+    /// ([`SgSettings::with_lobes_for`], what `relight eval` does when no lobe option is
+    /// given) instead of taking `settings`' own.
+    pub lobes_by_material: bool,
     /// Also compute the error budget ([`budget`]) of every bake.
     pub budget: bool,
     /// Mitsuba samples per pixel per seed.
@@ -185,6 +189,8 @@ pub struct Row {
     pub direct_lobes: usize,
     /// Indirect lobes of the bake (0: no indirect component).
     pub indirect_lobes: usize,
+    /// The lobes' kernel, domain and order (`LobeSetting::describe`).
+    pub lobe_setting: String,
     /// Mesh vertices.
     pub vertices: usize,
     /// Bake wall time.
@@ -290,6 +296,15 @@ fn run_one(
         scene.materials.iter_mut().for_each(|x| *x = m);
     }
     let mut settings = e.settings;
+    if e.lobes_by_material {
+        let why;
+        (settings, why) = settings.with_lobes_for(&scene.materials);
+        eprintln!(
+            "eval sg: {}: lobes {} ({why})",
+            ex.name,
+            settings.bake.fit.lobes().describe()
+        );
+    }
     if !ex.indirect {
         settings.bake.indirect_lobes = 0;
     }
@@ -415,6 +430,7 @@ fn score(
         experiment: ex.name.clone(),
         direct_lobes: lobes,
         indirect_lobes: settings.bake.indirect_lobes,
+        lobe_setting: settings.bake.fit.lobes().describe(),
         vertices: scene.mesh.vertex_count(),
         bake_seconds: sg.record.seconds,
         frame_ms,
@@ -490,7 +506,7 @@ fn table(rows: &[Row], e: &SgEval) -> String {
         s.diffuse_order
     );
     md.push_str(
-        "| experiment | lobes | vertices | bake s | frame ms | fit error | flips (after relax.) | Mitsuba max_depth | rel. RMSE SG | reference noise | rel. RMSE no-visibility | shadowed px | rel. RMSE there: SG / no-vis. | mean lum. there: ref / SG / no-vis. |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| experiment | lobes | kernel, domain, order | vertices | bake s | frame ms | fit error | flips (after relax.) | Mitsuba max_depth | rel. RMSE SG | reference noise | rel. RMSE no-visibility | shadowed px | rel. RMSE there: SG / no-vis. | mean lum. there: ref / SG / no-vis. |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let lum = r
@@ -499,10 +515,11 @@ fn table(rows: &[Row], e: &SgEval) -> String {
             .unwrap_or_else(|| "-".into());
         let _ = writeln!(
             md,
-            "| {} | {} + {} | {} | {:.1} | {:.1} | {:.3} | {} ({}) | {} | {:.1} % | {:.1} % | {} | {} | {} / {} | {} |",
+            "| {} | {} + {} | {} | {} | {:.1} | {:.1} | {:.3} | {} ({}) | {} | {:.1} % | {:.1} % | {} | {} | {} / {} | {} |",
             r.experiment,
             r.direct_lobes,
             r.indirect_lobes,
+            r.lobe_setting,
             r.vertices,
             r.bake_seconds,
             r.frame_ms,

@@ -14,7 +14,7 @@ use crate::store::{BakeRecord, BakedScene};
 use crate::{build_caster, BakeContext, BakeInput, BakeKind, Method, MethodError};
 use glam::Vec3;
 use relight_bake::sg::fit::PartFit;
-use relight_bake::sg::{self, SgBake, SgBakeSettings, SgFitStats, SgLobes, SgPart};
+use relight_bake::sg::{self, LobeSetting, SgBake, SgBakeSettings, SgFitStats, SgLobes, SgPart};
 use relight_bake::sh::{ShTransfer, ShTransferKind};
 use relight_bundle::Bundle;
 use relight_scene::error::Invalid;
@@ -63,6 +63,24 @@ pub struct SgSettings {
     /// A material blend across the mesh, if any.
     #[serde(default)]
     pub blend: Option<MaterialBlend>,
+}
+
+impl SgSettings {
+    /// These settings with the lobes [`LobeSetting::for_materials`] chooses for `materials`
+    /// and the blend's material (what `relight bake` and `relight eval` do when no lobe
+    /// option is given), and the reason.
+    pub fn with_lobes_for(self, materials: &[Material]) -> (SgSettings, &'static str) {
+        let blend = self.blend.as_ref().map(|b| &b.to);
+        let (lobes, why) = LobeSetting::for_materials(materials.iter().chain(blend));
+        let settings = SgSettings {
+            bake: SgBakeSettings {
+                fit: self.bake.fit.with_lobes(lobes),
+                ..self.bake
+            },
+            ..self
+        };
+        (settings, why)
+    }
 }
 
 /// Everything an `sg` bundle holds.
@@ -117,8 +135,8 @@ impl SgBaked {
         });
         let lines = vec![
             format!(
-                "SG (Green 2005): {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view, diffuse SH order {}",
-                k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.diffuse_order
+                "SG (Green 2005): {} views (icosahedron frequency {}), {} direct + {} indirect lobes per vertex and view ({}), diffuse SH order {}",
+                k.direct.view_count, k.view_frequency, s.direct_lobes, s.indirect_lobes, s.fit.lobes().describe(), s.diffuse_order
             ),
             format!(
                 "transfer: {} bytes per vertex as {}; {distinct} distinct per-vertex materials{blend}",
@@ -141,6 +159,7 @@ impl SgBaked {
             "views": k.direct.view_count,
             "direct_lobes": s.direct_lobes,
             "indirect_lobes": s.indirect_lobes,
+            "lobes": s.fit.lobes().describe(),
             "transfer_bytes_per_vertex": self.transfer_bytes_per_vertex(),
             "distinct_materials": distinct,
             "fit_mean_relative_error": st.mean_relative_error,
@@ -298,10 +317,11 @@ impl Method for Sg {
     fn settings_line(s: &SgSettings) -> String {
         let b = &s.bake;
         format!(
-            "SG, {} views, {} direct + {} indirect lobes, cube maps 6x{r}x{r} / 6x{q}x{q}, diffuse SH order {}",
+            "SG, {} views, {} direct + {} indirect lobes ({}), cube maps 6x{r}x{r} / 6x{q}x{q}, diffuse SH order {}",
             10 * relight_bake::sg::VIEW_FREQUENCY.pow(2) + 2,
             b.direct_lobes,
             b.indirect_lobes,
+            b.fit.lobes().describe(),
             b.diffuse_order,
             r = b.direct_res,
             q = b.indirect_res,

@@ -1,8 +1,9 @@
 //! Defaults and validation of [`SgBakeSettings`] and [`SgFitSettings`] (thesis section 3.1
 //! for the resolutions, 2.2.2 for the fit weights).
 
-use super::{SgBakeSettings, SgFitSettings};
+use super::{LobeOrder, SgBakeSettings, SgDomain, SgFitSettings, SgKernel};
 use crate::BakeError;
+use relight_scene::material::Material;
 use relight_sphere::sh::MAX_ORDER;
 
 /// Largest number of Gaussians per (vertex, view) and component.
@@ -77,6 +78,105 @@ impl SgFitSettings {
             }
         }
         Ok(())
+    }
+}
+
+/// One choice of the lobes' kernel, variable and order (the three fit settings that go
+/// together: the half-vector domain takes several lobes only nested, the GGX kernel several
+/// only in the half-vector domain; [`SgBakeSettings::validate`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LobeSetting {
+    /// The lobes' radial shape.
+    pub kernel: SgKernel,
+    /// The lobes' variable.
+    pub domain: SgDomain,
+    /// How `N >= 2` lobes are fitted.
+    pub order: LobeOrder,
+}
+
+impl LobeSetting {
+    /// Green 2005's Gaussians in the light direction, jointly fitted: [`SgFitSettings`]'
+    /// default.
+    pub const LIGHT_GAUSSIAN: LobeSetting = LobeSetting {
+        kernel: SgKernel::Gaussian,
+        domain: SgDomain::Light,
+        order: LobeOrder::Joint,
+    };
+
+    /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md §8, sessions 26-28).
+    pub const HALF_VECTOR_GGX: LobeSetting = LobeSetting {
+        kernel: SgKernel::Ggx,
+        domain: SgDomain::HalfVector,
+        order: LobeOrder::Nested,
+    };
+
+    /// The setting `relight bake` and `relight eval` choose for a scene with `materials` when
+    /// none of the lobe options is given, with the reason, chosen by the figures of
+    /// docs/RESULTS.md §8 ("The default lobes by material", session 29):
+    /// * a scene with a **GGX conductor** gets [`LobeSetting::HALF_VECTOR_GGX`]: a
+    ///   conductor's whole glossy transport is `D(h) G F` of the half vector, which one
+    ///   light-domain Gaussian cannot follow as it stretches at grazing views. Measured on the
+    ///   four conductor scenes (Spot 16.0 -> 9.2 %, Fig. 3-5 19.7 -> 11.0 %, teapot under
+    ///   Kiara 1 Dawn 12.9 -> 6.7 %, St Peter's 12.6 -> 8.1 %), 1.5-1.9x closer to Mitsuba
+    ///   at one lobe, and flat from one to three nested lobes. It costs about 2.2x the bake
+    ///   and five fetches per Gaussian term in the frame;
+    /// * every other scene keeps [`LobeSetting::LIGHT_GAUSSIAN`]: on the GGX plastic the
+    ///   half-vector lobe gains 10.5 -> 8.9 %, less than the reference's noise (4.4 %), for
+    ///   the same costs; Lambert, Blinn-Phong and Ward were not measured in that domain.
+    pub fn for_materials<'m>(
+        materials: impl IntoIterator<Item = &'m Material>,
+    ) -> (LobeSetting, &'static str) {
+        if materials
+            .into_iter()
+            .any(|m| matches!(m, Material::GgxConductor { .. }))
+        {
+            (
+                LobeSetting::HALF_VECTOR_GGX,
+                "the scene has a GGX conductor, whose lobes the half vector fits best",
+            )
+        } else {
+            (
+                LobeSetting::LIGHT_GAUSSIAN,
+                "the scene has no GGX conductor",
+            )
+        }
+    }
+
+    /// A short name: `gaussian, light, joint`.
+    pub fn describe(self) -> String {
+        format!(
+            "{}, {}, {}",
+            self.kernel.kernel().name(),
+            match self.domain {
+                SgDomain::Light => "light domain",
+                SgDomain::HalfVector => "half-vector domain",
+            },
+            match self.order {
+                LobeOrder::Joint => "joint",
+                LobeOrder::Nested => "nested",
+            }
+        )
+    }
+}
+
+impl SgFitSettings {
+    /// These settings with the lobes of `l`.
+    pub fn with_lobes(self, l: LobeSetting) -> Self {
+        SgFitSettings {
+            lobe_kernel: l.kernel,
+            lobe_domain: l.domain,
+            lobe_order: l.order,
+            ..self
+        }
+    }
+
+    /// The lobes these settings fit.
+    pub fn lobes(&self) -> LobeSetting {
+        LobeSetting {
+            kernel: self.lobe_kernel,
+            domain: self.lobe_domain,
+            order: self.lobe_order,
+        }
     }
 }
 
@@ -380,5 +480,55 @@ mod tests {
         assert!(e.contains("least-squares"), "{e}");
         s.fit.lobe_shape = super::super::LobeShape::LeastSquares;
         s.validate().unwrap();
+    }
+
+    /// The lobes chosen by material: a GGX conductor anywhere gives the half-vector GGX
+    /// lobes, which validate at every lobe count; other scenes keep the light-domain
+    /// Gaussians; the setting round-trips through the fit settings.
+    #[test]
+    fn lobes_by_material_are_valid_at_every_lobe_count() {
+        use glam::Vec3;
+        let plastic = Material::GgxPlastic {
+            diffuse: Vec3::splat(0.3),
+            specular: Vec3::ONE,
+            alpha: 0.1,
+            ior: 1.49,
+        };
+        let conductor = Material::GgxConductor {
+            specular: Vec3::splat(0.9),
+            alpha: 0.2,
+        };
+        let lambert = Material::Lambert {
+            albedo: Vec3::splat(0.5),
+        };
+        assert_eq!(
+            LobeSetting::for_materials(&[plastic, lambert]).0,
+            LobeSetting::LIGHT_GAUSSIAN
+        );
+        assert_eq!(
+            LobeSetting::for_materials(&[lambert, conductor, plastic]).0,
+            LobeSetting::HALF_VECTOR_GGX
+        );
+        for l in [LobeSetting::LIGHT_GAUSSIAN, LobeSetting::HALF_VECTOR_GGX] {
+            for (direct_lobes, indirect_lobes) in [(1, 1), (2, 1), (3, 0), (3, 2)] {
+                let s = SgBakeSettings {
+                    direct_lobes,
+                    indirect_lobes,
+                    fit: SgFitSettings::default().with_lobes(l),
+                    ..SgBakeSettings::default()
+                };
+                s.validate()
+                    .unwrap_or_else(|e| panic!("{l:?} {direct_lobes}: {e}"));
+                assert_eq!(s.fit.lobes(), l);
+            }
+        }
+        assert_eq!(
+            SgFitSettings::default().lobes(),
+            LobeSetting::LIGHT_GAUSSIAN
+        );
+        assert_eq!(
+            LobeSetting::HALF_VECTOR_GGX.describe(),
+            "ggx, half-vector domain, nested"
+        );
     }
 }
