@@ -4,7 +4,7 @@
 
 use super::{median, process_cpu_ms, Section};
 use glam::Vec3;
-use relight_bake::sg::SgBake;
+use relight_bake::sg::{LobeSetting, SgBake, SgDomain};
 use relight_render::raster::{self, RasterOptions};
 use relight_render::shade_sg::{SgLighting, SgRenderer};
 use relight_render::shade_sh;
@@ -25,6 +25,8 @@ pub struct SgFrameBench {
     pub vertices: usize,
     /// Lobes per vertex and view.
     pub lobes: usize,
+    /// Their kernel, domain and order.
+    pub setting: LobeSetting,
     /// Fraction of the image's pixels covered by the mesh.
     pub coverage: f64,
     /// Median SG frame (per-vertex pass + raster + per-pixel shading), milliseconds.
@@ -49,13 +51,28 @@ pub struct SgFrameBench {
 /// per view, `lobes` lobes about the mirror direction of the view (sharpness 20 to 500),
 /// order-5 diffuse transfer `y_i(n)` (smooth, not physical), GGX plastic.
 pub fn synthetic_sphere_bake(rings: u32, lobes: usize) -> (TriMesh, SgBake) {
+    synthetic_sphere_bake_with(rings, lobes, LobeSetting::LIGHT_GAUSSIAN)
+}
+
+/// [`synthetic_sphere_bake`] with the lobes of `setting`: in the half-vector domain the axes
+/// are about the normal (the half vector of the mirror direction) instead.
+pub fn synthetic_sphere_bake_with(
+    rings: u32,
+    lobes: usize,
+    setting: LobeSetting,
+) -> (TriMesh, SgBake) {
+    let half = setting.domain == SgDomain::HalfVector;
     let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, rings, 2 * rings);
     let order = 5;
     let bake = SgBake::from_fn(
         &mesh,
         lobes,
         |x, n, v, k| {
-            let r = (2.0 * n.dot(v) * n - v).normalize_or(n);
+            let r = if half {
+                n
+            } else {
+                (2.0 * n.dot(v) * n - v).normalize_or(n)
+            };
             SgLobe {
                 axis: (r + 0.2 * k as f32 * n.any_orthonormal_vector()).normalize(),
                 sharpness: 20.0 + 480.0 * ((x * 7 + k * 3) % 11) as f32 / 10.0,
@@ -75,14 +92,21 @@ pub fn synthetic_sphere_bake(rings: u32, lobes: usize) -> (TriMesh, SgBake) {
             ior: 1.49,
         },
     );
+    let bake = SgBake {
+        kernel: setting.kernel.kernel(),
+        domain: setting.domain,
+        lobe_order: setting.order,
+        ..bake
+    };
     (mesh, bake)
 }
 
 /// Times a 512 x 512 SG frame (1 sample per pixel) of a ~15K-vertex sphere filling most of
 /// the image with `lobes` lobes, under a prefiltered 6 x 128 x 128 environment, against the
-/// SH PRT frame of the same mesh and camera; medians of `runs` frames after a warm-up.
-pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
-    let (mesh, bake) = synthetic_sphere_bake(87, lobes);
+/// SH PRT frame of the same mesh and camera; medians of `runs` frames after a warm-up; lobes
+/// of `setting` (the frame's options by the bake, `ShadeOptions::default_for`).
+pub fn bench_sg_frame(lobes: usize, runs: usize, setting: LobeSetting) -> SgFrameBench {
+    let (mesh, bake) = synthetic_sphere_bake_with(87, lobes, setting);
     let env = Environment::new(EnvMap::cube_from_fn(128, |d| {
         Vec3::new(0.2, 0.3, 0.5) * (1.2 + d.y)
             + Vec3::splat(40.0) * (d.dot(Vec3::new(0.3, 0.8, 0.5).normalize()) > 0.995) as u8 as f32
@@ -131,6 +155,7 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     SgFrameBench {
         vertices: mesh.vertex_count(),
         lobes,
+        setting,
         coverage,
         ms_per_frame: median(sg),
         vertex_ms: median(vert),
@@ -141,13 +166,18 @@ pub fn bench_sg_frame(lobes: usize, runs: usize) -> SgFrameBench {
     }
 }
 
-/// The section: 1, 2 and 3 lobes, median of 9 frames (1 lobe, median of 3 with `quick`).
+/// The section: 1, 2 and 3 lobes of the light-domain Gaussians and of the half-vector GGX
+/// lobes (the setting `relight bake` chooses for a GGX conductor), median of 9 frames (1
+/// lobe of each, median of 3 with `quick`). "SG / SH" is each row's ratio to the SH frame of
+/// its own run; the half-vector rows also give their ratio to the Gaussian row of the same
+/// lobe count.
 pub(super) fn section(quick: bool) -> Section {
     let runs = if quick { 3 } else { 9 };
     let mut sec = Section::new(
         format!("SG frame: 512 x 512, ~15K-vertex sphere, one sample per pixel (median of {runs})"),
         &[
             "lobes",
+            "kernel, domain, order",
             "vertices",
             "coverage",
             "SG frame (ms)",
@@ -156,23 +186,31 @@ pub(super) fn section(quick: bool) -> Section {
             "SH frame (ms)",
             "SH CPU time (ms)",
             "SG / SH",
+            "over the Gaussian row",
             "fps",
         ],
     );
     for lobes in if quick { 1..=1 } else { 1..=3 } {
-        let b = bench_sg_frame(lobes, runs);
-        sec.row(vec![
-            json!(lobes),
-            json!(b.vertices),
-            json!(b.coverage),
-            json!(b.ms_per_frame),
-            json!(b.vertex_ms),
-            json!(b.cpu_ms_per_frame),
-            json!(b.sh_ms_per_frame),
-            json!(b.sh_cpu_ms_per_frame),
-            json!(b.ms_per_frame / b.sh_ms_per_frame),
-            json!(1e3 / b.ms_per_frame),
-        ]);
+        let mut gaussian_ms = None;
+        for setting in [LobeSetting::LIGHT_GAUSSIAN, LobeSetting::HALF_VECTOR_GGX] {
+            let b = bench_sg_frame(lobes, runs, setting);
+            let over = gaussian_ms.map(|g| b.ms_per_frame / g);
+            gaussian_ms.get_or_insert(b.ms_per_frame);
+            sec.row(vec![
+                json!(lobes),
+                json!(setting.describe()),
+                json!(b.vertices),
+                json!(b.coverage),
+                json!(b.ms_per_frame),
+                json!(b.vertex_ms),
+                json!(b.cpu_ms_per_frame),
+                json!(b.sh_ms_per_frame),
+                json!(b.sh_cpu_ms_per_frame),
+                json!(b.ms_per_frame / b.sh_ms_per_frame),
+                json!(over),
+                json!(1e3 / b.ms_per_frame),
+            ]);
+        }
     }
     sec
 }
@@ -183,7 +221,7 @@ mod tests {
 
     #[test]
     fn bench_reports_consistent_figures() {
-        let b = bench_sg_frame(1, 1);
+        let b = bench_sg_frame(1, 1, LobeSetting::HALF_VECTOR_GGX);
         assert!(b.ms_per_frame > 0.0 && b.sh_ms_per_frame > 0.0 && b.vertex_ms > 0.0);
         assert!((10_000..20_000).contains(&b.vertices), "{}", b.vertices);
         assert!(b.coverage > 0.3 && b.coverage < 1.0, "{}", b.coverage);
