@@ -382,7 +382,7 @@ fn run_one(
                 spp: e.spp,
                 direct_reference: (depth == 2).then_some(&r.mean),
                 mask: &mask,
-                shade: ShadeOptions::default_for(sg.bake.domain, sg.bake.lobe_order),
+                shade: ShadeOptions::for_bake(&sg.bake),
             })?);
         }
     }

@@ -73,7 +73,7 @@ pub(crate) struct SgGpuFrame<'a> {
 impl<'a> SgGpuFrame<'a> {
     pub fn new(gpu: &'a Gpu, baked: &'a SgBaked, s: &SgFrameSettings) -> Result<Self, GpuError> {
         let renderer = SgRenderer::new(&baked.scene.mesh, &baked.bake)
-            .with_options(s.shade_options(baked.bake.domain, baked.bake.lobe_order));
+            .with_options(s.shade_options(&baked.bake));
         let mut up = 0;
         let mesh = MeshBuffers::new(gpu, &baked.scene.mesh, &mut up)?;
         let raster = Raster::new(gpu, &mut up)?;

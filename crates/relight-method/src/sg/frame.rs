@@ -6,7 +6,7 @@ use super::SgBaked;
 use crate::prefiltered::{check_prefilter_size, render_lit, set_lighting, Lit};
 use crate::PrepareTimes;
 use crate::{Frame, FrameOptions, FrameOutput, MethodError, MethodKind};
-use relight_bake::sg::{LobeOrder, SgDomain};
+use relight_bake::sg::SgBake;
 use relight_render::shade_sg::{LobeBlend, SgLighting, SgRenderer, ShadeOptions};
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
@@ -24,16 +24,16 @@ pub struct SgFrameSettings {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFrameSettings::default().prefilter_size))]
     pub prefilter_size: usize,
     /// How a vertex's lobes are blended across its three nearest views (`linear`: the
-    /// thesis' parameters; `energy`: integrals, shape weighted by energy).
-    #[cfg_attr(feature = "cli", arg(long = "sg-view-blend", value_enum, default_value_t = SgFrameSettings::default().view_blend))]
-    pub view_blend: SgBlend,
+    /// thesis' parameters; `energy`: integrals, shape weighted by energy) [default: linear,
+    /// or energy for a half-vector bake of two or more nested lobes]
+    #[cfg_attr(feature = "cli", arg(long = "sg-view-blend", value_enum))]
+    pub view_blend: Option<SgBlend>,
     /// How a pixel blends its triangle's three corners' lobes [default: energy for a bake
     /// in the light domain, linear for one in the half-vector domain]
     #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum))]
     pub corner_blend: Option<SgBlend>,
     /// Which blends permute lobes to a reference's before blending (section 3.4's flips)
-    /// [default: both, or none for a half-vector bake, whose nested lobes correspond slot
-    /// by slot]
+    /// [default: both, or none for a half-vector bake]
     #[cfg_attr(feature = "cli", arg(long = "sg-match", value_enum))]
     pub matching: Option<SgMatch>,
 }
@@ -83,14 +83,14 @@ impl std::fmt::Display for SgMatch {
 }
 
 impl SgFrameSettings {
-    /// The renderer's interpolation options for a bake whose lobes are in `domain`, ordered
-    /// by `order` (what is not set takes `ShadeOptions::default_for`).
-    pub fn shade_options(&self, domain: SgDomain, order: LobeOrder) -> ShadeOptions {
+    /// The renderer's interpolation options for `bake` (what is not set takes
+    /// `ShadeOptions::for_bake`).
+    pub fn shade_options(&self, bake: &SgBake) -> ShadeOptions {
         let blend = |b| match b {
             SgBlend::Linear => LobeBlend::Linear,
             SgBlend::Energy => LobeBlend::Energy,
         };
-        let by_bake = ShadeOptions::default_for(domain, order);
+        let by_bake = ShadeOptions::for_bake(bake);
         let (match_views, match_corners) = match self.matching {
             None => (by_bake.match_views, by_bake.match_corners),
             Some(m) => (
@@ -99,7 +99,7 @@ impl SgFrameSettings {
             ),
         };
         ShadeOptions {
-            views: blend(self.view_blend),
+            views: self.view_blend.map_or(by_bake.views, blend),
             match_views,
             corners: self.corner_blend.map_or(by_bake.corners, blend),
             match_corners,
@@ -109,13 +109,14 @@ impl SgFrameSettings {
 
 impl Default for SgFrameSettings {
     /// A 128-texel finest level; the renderer's default interpolation
-    /// (`ShadeOptions::default_for`: views linear; light-domain lobes matched in both blends,
-    /// corners by energy; half-vector lobes corners linear, matched only if jointly fitted;
-    /// the test `frame_settings_map_onto_the_renderers_interpolation` keeps the two equal).
+    /// (`ShadeOptions::for_bake`: light-domain lobes views linear, corners by energy, matched
+    /// in both blends; one half-vector lobe linear, unmatched; nested half-vector lobes
+    /// views by energy, corners linear, unmatched; the test `frame_settings_map_onto_the_renderers_interpolation`
+    /// keeps the two equal).
     fn default() -> Self {
         SgFrameSettings {
             prefilter_size: 128,
-            view_blend: SgBlend::Linear,
+            view_blend: None,
             corner_blend: None,
             matching: None,
         }
@@ -140,7 +141,7 @@ impl<'a> SgFrame<'a> {
         Ok(SgFrame {
             baked,
             renderer: SgRenderer::new(&baked.scene.mesh, &baked.bake)
-                .with_options(s.shade_options(baked.bake.domain, baked.bake.lobe_order)),
+                .with_options(s.shade_options(&baked.bake)),
             prefilter_size: s.prefilter_size,
             lighting: None,
         })

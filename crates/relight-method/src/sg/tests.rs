@@ -323,49 +323,80 @@ fn a_small_bake_through_the_seam_renders_and_refuses_other_methods() {
 fn frame_settings_map_onto_the_renderers_interpolation() {
     use relight_render::shade_sg::{LobeBlend, ShadeOptions};
     // The default settings are the renderer's default, so `relight render` and the library
-    // agree, in both lobe domains and for both lobe orders.
-    use relight_bake::sg::{LobeOrder, SgDomain};
+    // agree, in both lobe domains, for both lobe orders and any lobe count.
+    use relight_bake::sg::{LobeOrder, SgBake, SgDomain};
+    let bake = |domain, lobe_order, lobes| {
+        let mesh = relight_scene::shapes::uv_sphere(Vec3::ZERO, 1.0, 2, 4);
+        let b = SgBake::from_fn(
+            &mesh,
+            lobes,
+            |_, n, _, _| SgLobe {
+                axis: n,
+                sharpness: 10.0,
+                amplitude: Vec3::ONE,
+            },
+            1,
+            |_| vec![0.0],
+            PLASTIC,
+        );
+        SgBake {
+            domain,
+            lobe_order,
+            ..b
+        }
+    };
     for domain in [SgDomain::Light, SgDomain::HalfVector] {
         for order in [LobeOrder::Joint, LobeOrder::Nested] {
-            assert_eq!(
-                SgFrameSettings::default().shade_options(domain, order),
-                ShadeOptions::default_for(domain, order)
-            );
+            for lobes in [1, 2] {
+                let b = bake(domain, order, lobes);
+                assert_eq!(
+                    SgFrameSettings::default().shade_options(&b),
+                    ShadeOptions::default_for(domain, order, lobes)
+                );
+                assert_eq!(
+                    ShadeOptions::for_bake(&b),
+                    ShadeOptions::default_for(domain, order, lobes)
+                );
+            }
         }
     }
     for order in [LobeOrder::Joint, LobeOrder::Nested] {
         assert_eq!(
-            ShadeOptions::default_for(SgDomain::Light, order),
+            ShadeOptions::default_for(SgDomain::Light, order, 2),
             ShadeOptions::default()
         );
     }
-    let joint = ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Joint);
+    let joint = ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Joint, 1);
     assert_eq!(
         (joint.corners, joint.match_views, joint.match_corners),
         (LobeBlend::Linear, true, true)
     );
-    // Nested half-vector lobes correspond slot by slot: not re-matched.
+    // One half-vector lobe: linear blends; nested ones: views by energy, slot by slot.
     assert_eq!(
-        ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Nested),
+        ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Nested, 1),
         ShadeOptions::PAPER
     );
+    assert_eq!(
+        ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Nested, 3),
+        ShadeOptions::NESTED_HALF_VECTOR
+    );
     let paper = SgFrameSettings {
-        view_blend: SgBlend::Linear,
+        view_blend: Some(SgBlend::Linear),
         corner_blend: Some(SgBlend::Linear),
         matching: Some(SgMatch::None),
         ..Default::default()
     };
     assert_eq!(
-        paper.shade_options(SgDomain::Light, LobeOrder::Joint),
+        paper.shade_options(&bake(SgDomain::Light, LobeOrder::Joint, 2)),
         ShadeOptions::PAPER
     );
     let o = SgFrameSettings {
-        view_blend: SgBlend::Energy,
+        view_blend: Some(SgBlend::Energy),
         corner_blend: Some(SgBlend::Linear),
         matching: Some(SgMatch::Corners),
         ..Default::default()
     }
-    .shade_options(SgDomain::HalfVector, LobeOrder::Nested);
+    .shade_options(&bake(SgDomain::HalfVector, LobeOrder::Nested, 2));
     assert_eq!(
         (o.views, o.match_views, o.corners, o.match_corners),
         (LobeBlend::Energy, false, LobeBlend::Linear, true)
