@@ -98,18 +98,13 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
     Ok(())
 }
 
-/// Elevation above the horizon and Mitsuba azimuth `phi = atan2(x, -z)`, degrees.
-fn elevation_azimuth(d: Vec3) -> (f32, f32) {
-    let el = d.y.clamp(-1.0, 1.0).asin().to_degrees();
-    let az = d.x.atan2(-d.z).to_degrees().rem_euclid(360.0);
-    (el, az)
-}
-
 fn report(a: &Args, d: &Decomposition, out: &Out) {
     out.line("#  i    dir x    dir y    dir z  elev(deg)  azim(deg)   power r      power g      power b    share%  size(deg)");
     let mut lights = vec![];
     for (i, l) in d.lights.iter().enumerate() {
-        let (el, az) = elevation_azimuth(l.dir);
+        // Elevation and Mitsuba azimuth (degrees) from the latlong's (u, v).
+        let uv = relight_sphere::latlong::dir_to_uv(l.dir);
+        let (el, az) = (90.0 - 180.0 * uv.y, 360.0 * uv.x);
         let share = 100.0 * l.luminance / d.total_luminance.max(f32::MIN_POSITIVE);
         out.line(format!(
             "{i:4} {:8.4} {:8.4} {:8.4} {el:10.2} {az:10.2} {:12.5e} {:12.5e} {:12.5e} {share:8.2} {:10.2}",

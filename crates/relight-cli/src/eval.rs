@@ -129,30 +129,6 @@ fn print(a: &Args, out: &Out) -> Result<()> {
     Ok(())
 }
 
-/// The direct lobe counts of `--direct-lobes` (a list in `relight eval`, see [`Args`]), each
-/// checked against the bake's range.
-fn direct_lobes(m: &ArgMatches) -> Result<Vec<usize>> {
-    let lobes: Vec<usize> = m
-        .get_many::<usize>("direct_lobes")
-        .map(|v| v.copied().collect())
-        .unwrap_or_default();
-    for &l in &lobes {
-        ensure!(
-            (1..=relight_bake::sg::MAX_LOBES).contains(&l),
-            "--direct-lobes {l} is not in 1..={}",
-            relight_bake::sg::MAX_LOBES
-        );
-    }
-    let mut seen = lobes.clone();
-    seen.sort_unstable();
-    seen.dedup();
-    ensure!(
-        seen.len() == lobes.len(),
-        "--direct-lobes lists a count twice"
-    );
-    Ok(lobes)
-}
-
 /// Run `relight eval`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     use EvalMethod::*;
@@ -236,7 +212,9 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             sg::run(&sg::SgEval {
                 experiments,
                 settings,
-                lobes: direct_lobes(m)?,
+                lobes: m
+                    .get_many::<usize>("direct_lobes")
+                    .map_or(vec![], |v| v.copied().collect()),
                 lobes_by_material: !args::sg_lobes_given(m),
                 budget: a.budget,
                 spp: a.spp,
@@ -251,14 +229,13 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             } else {
                 a.scenes.clone()
             };
-            let tree_given = m.value_source("tree") == Some(clap::parser::ValueSource::CommandLine);
             cuts::run(&cuts::CutsEval {
                 scenes,
                 settings: CutsBakeSettings {
                     progress: true,
                     ..a.cuts
                 },
-                trees: cuts::trees(tree_given.then_some(a.cuts.tree)),
+                trees: cuts::trees(args::given(m, "tree").then_some(a.cuts.tree)),
                 light_cuts: a.light_cuts.clone(),
                 edited_materials: !a.scene_materials_only,
                 spp: a.spp,

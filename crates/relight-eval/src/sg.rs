@@ -235,11 +235,7 @@ pub struct Row {
 /// # Errors
 /// Missing Mitsuba, unreadable inputs, bake, render or write failures.
 pub fn run(e: &SgEval) -> Result<Vec<Row>> {
-    if e.lobes.is_empty() {
-        return Err(crate::EvalError::Options(
-            "no direct lobe count to evaluate".into(),
-        ));
-    }
+    check_lobes(&e.lobes)?;
     let python = mitsuba_python()?;
     output::create_dir(&e.out)?;
     let mut rows = Vec::new();
@@ -259,6 +255,23 @@ pub fn run(e: &SgEval) -> Result<Vec<Row>> {
     }
     output::results(&e.out, &md, &rows)?;
     Ok(rows)
+}
+
+/// [`SgEval::lobes`] checked before any work: at least one count, each in
+/// `1..=MAX_LOBES`, none twice.
+fn check_lobes(lobes: &[usize]) -> Result<()> {
+    let refuse = |m: String| Err(crate::EvalError::Options(m));
+    let max = relight_bake::sg::MAX_LOBES;
+    if lobes.is_empty() {
+        return refuse("no direct lobe count to evaluate".into());
+    }
+    if let Some(l) = lobes.iter().find(|l| !(1..=max).contains(*l)) {
+        return refuse(format!("--direct-lobes {l} is not in 1..={max}"));
+    }
+    if (1..lobes.len()).any(|i| lobes[..i].contains(&lobes[i])) {
+        return refuse("--direct-lobes lists a count twice".into());
+    }
+    Ok(())
 }
 
 /// Bake `scene` with `settings` and render it under its own environment and camera.
@@ -600,4 +613,27 @@ fn budget_table(rows: &[budget::BudgetRow]) -> String {
         );
     }
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_lobes;
+
+    #[test]
+    fn lobe_counts_are_checked_before_any_work() {
+        let max = relight_bake::sg::MAX_LOBES;
+        assert!(check_lobes(&[1, 2, max]).is_ok());
+        for (bad, says) in [
+            (vec![], "no direct lobe count".to_string()),
+            (vec![1, 0], "--direct-lobes 0 is not in".into()),
+            (
+                vec![max + 1],
+                format!("--direct-lobes {} is not in", max + 1),
+            ),
+            (vec![2, 1, 2], "lists a count twice".into()),
+        ] {
+            let e = check_lobes(&bad).unwrap_err().to_string();
+            assert!(e.contains(&says), "{bad:?}: {e}");
+        }
+    }
 }

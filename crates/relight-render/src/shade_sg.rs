@@ -478,7 +478,7 @@ impl ShadeOptions {
     /// blended linearly across views, a residual lobe's axis is averaged with the next
     /// view's at full weight however little energy it carries, and on St Peter's conductor
     /// two and three lobes came out at 16.3 and 12.4 % against 8.1 % for one; with the views
-    /// by energy 8.1 %. Matching as well (the energy frame) broke the small sphere test
+    /// by energy 8.1 and 8.3 %. Matching as well (the energy frame) broke the small sphere test
     /// instead (13.0 % at two lobes against 7.5 % at one; docs/RESULTS.md §8, session 29).
     pub fn default_for(domain: SgDomain, order: LobeOrder, lobes: usize) -> ShadeOptions {
         match (domain, order) {

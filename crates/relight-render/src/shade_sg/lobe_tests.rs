@@ -258,8 +258,8 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
 /// frame: sphere 0.0750, 0.0808, 0.1070 (noise 0.0368), shadowed highlight 0.2102, 0.2143,
 /// 0.2239 (noise 0.0363): each step within one noise, the trend upward on these 16-texel
 /// scenes. The linear frame at every count gave 0.075, 0.081, 0.108 and 0.210, 0.230, 0.245;
-/// on St Peter's conductor it gave 8.1, 16.3, 12.4 % against 8.1 % for every count with
-/// views by energy (docs/RESULTS.md §8, session 29).
+/// on St Peter's conductor it gave 8.1, 16.3, 12.4 % against 8.1, 8.1, 8.3 % with the
+/// default (docs/RESULTS.md §8, sessions 29-30).
 #[test]
 fn more_half_vector_lobes_are_never_worse() {
     let fit = bake_sg::SgFitSettings {
