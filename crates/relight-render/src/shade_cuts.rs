@@ -29,12 +29,15 @@
 //! stays the one baked with the vertex normals (the paper's approximation), with
 //! [`CutFunction::Visibility`] it follows the mapped normal as the path tracer's does.
 
+mod cache;
 mod corners;
 pub(crate) mod lanes;
 mod triangle;
 
 use crate::mapped::MappedMaterials;
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
+use cache::MergedCache;
+pub use cache::DEFAULT_BUDGET as DEFAULT_MERGE_CACHE_BYTES;
 use corners::CornerLists;
 use glam::Vec3;
 use relight_bake::cuts::light_cut::LightCut;
@@ -63,8 +66,11 @@ pub struct CutsShader<'a> {
     function: CutFunction,
     /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
     spread: bool,
-    /// The corner lists of the last light cut rendered ([`CutsShader::prepare`]).
-    corners: Mutex<Option<Arc<LitCorners>>>,
+    /// The corner lists and merged cuts of the last light cut rendered
+    /// ([`CutsShader::prepare`]).
+    lit: Mutex<Option<Arc<Lit>>>,
+    /// Bytes of merged cuts kept across frames ([`CutsShader::with_merge_cache`]).
+    cache_budget: usize,
     /// Whether a material is Lambert (shaded from the corner lists).
     has_lambert: bool,
 }
@@ -96,7 +102,8 @@ impl<'a> CutsShader<'a> {
             bake,
             function,
             spread: false,
-            corners: Mutex::new(None),
+            lit: Mutex::new(None),
+            cache_budget: cache::DEFAULT_BUDGET,
         }
     }
 
@@ -106,6 +113,14 @@ impl<'a> CutsShader<'a> {
     /// evaluated at the cluster's direction alone; Lambert keeps its one evaluation.
     pub fn with_cluster_spread(mut self, on: bool) -> Self {
         self.spread = on;
+        self
+    }
+
+    /// Keep at most `bytes` of triangles' merged cuts across the frames of one light cut
+    /// (default [`DEFAULT_MERGE_CACHE_BYTES`]; 0: none, every frame merges every visible
+    /// triangle). Module docs of `shade_cuts::cache`: the frames are the same bits either way.
+    pub fn with_merge_cache(mut self, bytes: usize) -> Self {
+        self.cache_budget = bytes;
         self
     }
 
@@ -194,7 +209,10 @@ impl<'a> CutsShader<'a> {
         opts: &RasterOptions,
         stage: CutsStage,
     ) -> Rendered {
-        let lit = self.has_lambert.then(|| self.prepared(light));
+        let lit = self.prepared(light);
+        if let (Some(m), CutsStage::Full) = (&lit.merged, stage) {
+            m.begin_frame();
+        }
         let eye = Vec3::from_array(camera.origin);
         raster::render_deferred_batched(self.mesh, camera, background, opts, |tri, fs, out| {
             if stage == CutsStage::GBuffer {
@@ -204,33 +222,46 @@ impl<'a> CutsShader<'a> {
                 .materials
                 .of_triangle(self.mesh, tri as usize)
                 .material();
-            match &lit {
-                Some(lit) if matches!(constant, Material::Lambert { .. }) => {
-                    self.shade_corners(light, &lit.lists, tri, fs, eye, out)
+            match (&lit.lists, &lit.merged) {
+                (Some(lists), _) if matches!(constant, Material::Lambert { .. }) => {
+                    self.shade_corners(light, lists, tri, fs, eye, out)
                 }
+                (_, Some(merged)) => TRIANGLE_CUT.with_borrow_mut(|t| {
+                    merged.fill(t, self, light, tri, self.glossy_spread(constant));
+                    self.shade_triangle(light, t, tri, fs, eye, out);
+                }),
                 _ => self.merge_and_shade(light, constant, tri, fs, eye, out),
             }
         })
     }
 
-    /// Merge every vertex's cut with `light` now (the traversal of sec. 3.2 over two cuts;
-    /// what [`CutsShader::render`] does on its first frame under a new light cut: once per
-    /// environment and rotation, independent of the camera and the materials) and keep the
-    /// lists for the next frames; `None` (nothing built) when no material is Lambert.
+    /// Prepare the frames of `light` now (what [`CutsShader::render`] does on its first
+    /// frame under a new light cut: once per environment and rotation, independent of the
+    /// camera and the materials): with a Lambert material, merge every vertex's cut with
+    /// `light` (the traversal of sec. 3.2 over two cuts) and keep the lists; start an empty
+    /// cache of merged triangle cuts (`shade_cuts::cache`). Returns the corner lists'
+    /// figures, `None` (no lists) when no material is Lambert.
     pub fn prepare(&self, light: &LightCut) -> Option<CornerStats> {
-        self.has_lambert.then(|| {
-            let lit = self.prepared(light);
-            CornerStats {
-                mean_len: lit.lists.mean_len(),
-                bytes: lit.lists.bytes(),
-            }
+        let lit = self.prepared(light);
+        lit.lists.as_ref().map(|lists| CornerStats {
+            mean_len: lists.mean_len(),
+            bytes: lists.bytes(),
         })
     }
 
-    /// The cached corner lists of `light`, built if the cache holds another light cut (or
+    /// Bytes of merged triangle cuts kept for the last light cut rendered
+    /// ([`CutsShader::with_merge_cache`]).
+    pub fn merge_cache_bytes(&self) -> usize {
+        let lit = self.lit.lock().unwrap_or_else(|e| e.into_inner());
+        lit.as_ref()
+            .and_then(|l| l.merged.as_ref())
+            .map_or(0, |m| m.bytes())
+    }
+
+    /// What the frames of `light` keep, built if the cache holds another light cut (or
     /// none). The comparison is exact (every node, value and direction).
-    fn prepared(&self, light: &LightCut) -> Arc<LitCorners> {
-        let mut cache = self.corners.lock().unwrap_or_else(|e| e.into_inner());
+    fn prepared(&self, light: &LightCut) -> Arc<Lit> {
+        let mut cache = self.lit.lock().unwrap_or_else(|e| e.into_inner());
         match &*cache {
             Some(lit) if lit.light == *light => lit.clone(),
             _ => {
@@ -239,15 +270,24 @@ impl<'a> CutsShader<'a> {
                 let reuse = cache
                     .take()
                     .and_then(|old| Arc::try_unwrap(old).ok())
-                    .map(|old| old.lists);
-                let lit = Arc::new(LitCorners {
-                    lists: CornerLists::build(&self.bake.cuts, light, reuse),
+                    .and_then(|old| old.lists);
+                let lit = Arc::new(Lit {
+                    lists: self
+                        .has_lambert
+                        .then(|| CornerLists::build(&self.bake.cuts, light, reuse)),
+                    merged: MergedCache::new(self, light, self.cache_budget),
                     light: light.clone(),
                 });
                 *cache = Some(lit.clone());
                 lit
             }
         }
+    }
+
+    /// Whether triangles of material `constant` are merged for the cluster spread.
+    #[inline]
+    fn glossy_spread(&self, constant: &Material) -> bool {
+        self.spread && !constant.is_diffuse_only()
     }
 
     /// The previous default frame: [`raster::render_deferred_batched`], which hands over a
@@ -287,7 +327,7 @@ impl<'a> CutsShader<'a> {
         out: &mut [Vec3],
     ) {
         TRIANGLE_CUT.with_borrow_mut(|t| {
-            t.build(self, light, tri, self.spread && !constant.is_diffuse_only());
+            t.build(self, light, tri, self.glossy_spread(constant), None);
             self.shade_triangle(light, t, tri, fs, eye, out);
         })
     }
@@ -460,10 +500,12 @@ pub struct CornerStats {
     pub bytes: usize,
 }
 
-/// The corner lists of a light cut, with the light cut they were built from.
-struct LitCorners {
+/// What the frames of one light cut keep: the corner lists (with a Lambert material) and the
+/// merged triangle cuts (unless the cache is off), with the light cut they were built for.
+struct Lit {
     light: LightCut,
-    lists: CornerLists,
+    lists: Option<CornerLists>,
+    merged: Option<MergedCache>,
 }
 
 #[cfg(test)]
@@ -471,6 +513,9 @@ mod ward_tests;
 
 #[cfg(test)]
 mod corner_tests;
+
+#[cfg(test)]
+mod cache_tests;
 
 #[cfg(test)]
 pub(crate) mod texture_tests;

@@ -10,8 +10,12 @@
 //! merges every vertex's cut with the light cut (`CutsShader::prepare`: once per light cut,
 //! timed apart, as a change of environment or rotation costs it), then each frame is split
 //! into its stages ([`relight_render::shade_cuts::CutsStage`]): the G-buffer (rasterise and
-//! group fragments by triangle) and the shading of every fragment (its three corners' lists
-//! summed). Measured in the same run: the previous default, the per-triangle merge
+//! group fragments by triangle) and the shading of every fragment (Lambert: its three
+//! corners' lists summed; glossy: its triangle's merged cut, kept across frames,
+//! `relight_render::shade_cuts` module `cache`). The frame is timed with the camera orbiting
+//! by [`ORBIT_DEG`] per frame (each frame merges the triangles that came into view), and
+//! again with nothing kept ("all merged": every visible triangle merged, the first frame
+//! after a change of light cut). Measured in the same run: the previous default, the per-triangle merge
 //! (`render_merged`: every visible triangle's three vertex cuts merged with the light cut
 //! once per triangle and band of rows), and the **baseline**, the per-fragment merge
 //! (`render_per_fragment`: the three cuts merged again at every fragment, the paper's
@@ -37,6 +41,10 @@ use std::time::Instant;
 /// The frame target of issue 11, milliseconds (6.4 fps).
 pub const TARGET_MS: f64 = 1e3 / 6.4;
 
+/// Degrees the bench's camera orbits per frame (32 degrees per second at 6.4 fps: a brisk
+/// turn of the model).
+pub const ORBIT_DEG: f32 = 5.0;
+
 /// The section: bake, then per function, material and light cut the corner lists and the
 /// stages of the frame, against the per-triangle and the per-fragment merge.
 ///
@@ -50,8 +58,14 @@ pub(super) fn section(
     let (name, mesh) = super::cuts_bake::bunny_or_sphere(bake_mesh, data)?;
     let (lo, hi) = mesh.bounds().expect("a non-empty mesh");
     let (centre, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
-    let eye = centre + Vec3::new(0.3, 0.4, 1.0).normalize() * radius * 2.6;
-    let camera = Camera::look_at(eye.to_array(), centre.to_array(), 45.0, 512, 512);
+    // The camera at `deg` degrees of an orbit about the vertical through the mesh's centre.
+    let camera_at = |deg: f32| {
+        let (s, c) = deg.to_radians().sin_cos();
+        let d = Vec3::new(0.3, 0.4, 1.0).normalize();
+        let eye = centre + Vec3::new(c * d.x + s * d.z, d.y, c * d.z - s * d.x) * radius * 2.6;
+        Camera::look_at(eye.to_array(), centre.to_array(), 45.0, 512, 512)
+    };
+    let camera = camera_at(0.0);
     let env = super::cuts_bake::sky_with_sun();
     let caster = accel::build_default(&mesh);
     let lights = if quick {
@@ -80,6 +94,9 @@ pub(super) fn section(
             "shading (ms)",
             "frame (ms)",
             "frame CPU (ms)",
+            "kept merges (MiB)",
+            "frame, all merged (ms)",
+            "frame, all merged CPU (ms)",
             "triangle merge frame (ms)",
             "triangle merge frame CPU (ms)",
             "per-fragment merge (ms)",
@@ -118,20 +135,17 @@ pub(super) fn section(
         );
         let power = sample_power(&bake.samples, &env).map_err(bad)?;
         for material in materials {
-            let shader = CutsShader::new(
-                &mesh,
-                vec![
-                    material;
-                    mesh.material_ids
-                        .iter()
-                        .max()
-                        .map_or(1, |&m| m as usize + 1)
-                ],
-                &bake,
-                function,
-            )
+            let shader_materials = vec![
+                material;
+                mesh.material_ids
+                    .iter()
+                    .max()
+                    .map_or(1, |&m| m as usize + 1)
+            ];
             // The frame's default (glossy BRDFs averaged over each cluster's spread).
-            .with_cluster_spread(relight_method::cuts::CutsFrameSettings::default().cluster_spread);
+            let spread = relight_method::cuts::CutsFrameSettings::default().cluster_spread;
+            let shader = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
+                .with_cluster_spread(spread);
             let budgets: &[usize] = if quick { &[256] } else { &LIGHT_CUT_BUDGETS };
             for &budget in budgets {
                 let light = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
@@ -157,7 +171,28 @@ pub(super) fn section(
                     time(&|| shader.render_stage(&light, &camera, None, &opts, stage))
                 };
                 let (gbuffer, _) = stage(CutsStage::GBuffer);
-                let (frame, frame_cpu) = stage(CutsStage::Full);
+                // The camera orbiting by ORBIT_DEG per frame under the light cut: each frame
+                // merges only the triangles that came into view (the others' merges kept).
+                shader.render(&light, &camera, None, &opts);
+                let (mut ms, mut cpu) = (vec![], 0.0);
+                let frames = if quick { 2 } else { 8 };
+                for i in 1..=frames {
+                    let cam = camera_at(ORBIT_DEG * i as f32);
+                    let (c0, t0) = (process_cpu_ms(), Instant::now());
+                    std::hint::black_box(shader.render(&light, &cam, None, &opts));
+                    ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                    cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
+                }
+                let (frame, frame_cpu) = (median(ms), cpu / frames as f64);
+                let kept = shader.merge_cache_bytes();
+                // Every visible triangle merged: the first frame after a change of light
+                // cut (a new environment or rotation).
+                let uncached = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
+                    .with_cluster_spread(spread)
+                    .with_merge_cache(0);
+                uncached.prepare(&light);
+                let (all_merged, all_merged_cpu) =
+                    time(&|| uncached.render(&light, &camera, None, &opts));
                 let (merged, merged_cpu) =
                     time(&|| shader.render_merged(&light, &camera, None, &opts));
                 let t0 = Instant::now();
@@ -179,6 +214,9 @@ pub(super) fn section(
                     json!(frame - gbuffer),
                     json!(frame),
                     json!(frame_cpu),
+                    json!(kept as f64 / (1 << 20) as f64),
+                    json!(all_merged),
+                    json!(all_merged_cpu),
                     json!(merged),
                     json!(merged_cpu),
                     json!(baseline),

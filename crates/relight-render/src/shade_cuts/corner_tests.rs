@@ -14,7 +14,7 @@ use relight_sphere::EnvMap;
 
 /// A coarse sphere on a plane (neighbouring vertices' cuts differ: the sphere's shadow and
 /// horizon) and its bake of `function` over 4096 lights.
-fn sphere_on_plane(function: CutFunction) -> (TriMesh, Box<dyn RayCaster>, CutsBake) {
+pub(super) fn sphere_on_plane(function: CutFunction) -> (TriMesh, Box<dyn RayCaster>, CutsBake) {
     let mut mesh = ground_plane(Vec3::ZERO, 4.0, 10);
     mesh.append(&uv_sphere(Vec3::new(0.0, 0.8, 0.0), 0.8, 12, 18), 1);
     let caster = build(&mesh, Backend::Bvh).unwrap();
@@ -27,7 +27,7 @@ fn sphere_on_plane(function: CutFunction) -> (TriMesh, Box<dyn RayCaster>, CutsB
     (mesh, caster, bake)
 }
 
-fn camera() -> Camera {
+pub(super) fn camera() -> Camera {
     Camera::look_at([2.4, 2.4, 3.6], [0.0, 0.6, 0.0], 40.0, 64, 48)
 }
 

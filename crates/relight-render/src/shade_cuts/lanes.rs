@@ -106,25 +106,30 @@ fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
 #[inline(always)]
 fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
-    let (n, v) = (gf.n, gf.v);
+    let n = gf.n;
     let inv_eta2 = 1.0 / (eta * eta);
     // Two passes of one output each (the loop with two outputs did not vectorise).
     let [spec] = spread_sums(g, gf.b, |x, y, z| {
-        let (h, hn, hh) = half_vector(gf, x, y, z);
-        // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0.
-        let ci = (v.x * h[0] + v.y * h[1] + v.z * h[2]) / hh.sqrt();
-        let sin2_t = (1.0 - ci * ci).max(0.0) * inv_eta2;
+        let (_, hn, hh) = half_vector(gf, x, y, z);
+        // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0. For unit `v`
+        // and `w`, `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i = |h| / 2` and
+        // `cos_i^2 = |h|^2 / 4`: one square root, no division.
+        let ci = 0.5 * hh.sqrt();
+        let sin2_t = (1.0 - 0.25 * hh).max(0.0) * inv_eta2;
         let ct = (1.0 - sin2_t).max(0.0).sqrt();
-        // `(rs^2 + rp^2) / 2` over one division: `rs = a / b`, `rp = c / d`.
+        // `(rs^2 + rp^2) / 2` as `num / den`: `rs = a / b`, `rp = c / d`; 1 under total
+        // internal reflection.
         let (a, b) = (ci - eta * ct, ci + eta * ct);
         let (c, d) = (eta * ci - ct, eta * ci + ct);
         let (bd, ad, cb) = (b * d, a * d, c * b);
-        let fr = if sin2_t >= 1.0 {
-            1.0
-        } else {
-            0.5 * (ad * ad + cb * cb) / (bd * bd)
-        };
-        [ggx_term(gf, x, y, z, hn, hh) * fr]
+        let tir = sin2_t >= 1.0;
+        let num = if tir { 1.0 } else { 0.5 * (ad * ad + cb * cb) };
+        let den = if tir { 1.0 } else { bd * bd };
+        // The GGX term and the reflectance over one division ([`ggx_ratio`]).
+        let (gn, gd) = ggx_ratio(gf, x, y, z, hn, hh);
+        let co = gf.n.x * x + gf.n.y * y + gf.n.z * z;
+        let y = gn * num / (gd * den);
+        [if co > 0.0 && hn > 0.0 { y } else { 0.0 }]
     });
     // `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the table's lookup, a gather).
     let t = f.transmittance;
@@ -213,18 +218,28 @@ fn half_vector(f: &GgxFragment, x: f32, y: f32, z: f32) -> ([f32; 3], f32, f32) 
 /// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`.
 #[inline(always)]
 fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> f32 {
+    let n = f.n;
+    let co = n.x * x + n.y * y + n.z * z;
+    let (num, den) = ggx_ratio(f, x, y, z, hn, hh);
+    let y = num / den;
+    if co > 0.0 && hn > 0.0 {
+        y
+    } else {
+        0.0
+    }
+}
+
+/// [`ggx_term`] before its division and its mask: `(2 c_w a^4 |h|^4, (c_w + sqrt q) t^2)`,
+/// so that a caller multiplying it by another ratio divides once (the plastic's Fresnel).
+#[inline(always)]
+fn ggx_ratio(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> (f32, f32) {
     let (n, a2) = (f.n, f.a2);
     let co = n.x * x + n.y * y + n.z * z;
     let co2 = co * co;
     let t = hh - hn * hn * (1.0 - a2);
     let q = co2 + a2 * (1.0 - co2).max(0.0);
     let a2hh = a2 * hh;
-    let y = 2.0 * co * a2hh * a2hh / ((co + q.sqrt()) * (t * t));
-    if co > 0.0 && hn > 0.0 {
-        y
-    } else {
-        0.0
-    }
+    (2.0 * co * a2hh * a2hh, (co + q.sqrt()) * (t * t))
 }
 
 /// `sum_k power_k (b . vis_k) term_k` for each of the `K` outputs of `term` (a function of a

@@ -2,6 +2,7 @@
 //! the per-triangle frame [`super::CutsShader::render_merged`], the merge of the three vertex
 //! cuts with the light cut done once per triangle and band of rows and summed per fragment.
 
+use super::cache::{Cluster, MergedCache};
 use super::corners::LANES;
 use super::lanes;
 use super::CutsShader;
@@ -55,13 +56,15 @@ impl TriangleCut {
 
     /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
     /// grow, and are written by index; a merged cut is at most as long as its four cuts
-    /// together), for the cluster spread if `spread`.
+    /// together), for the cluster spread if `spread`; each kept cluster also pushed onto
+    /// `record` if given (`shade_cuts::cache`; the light cut then has at most 65,536 nodes).
     pub(super) fn build(
         &mut self,
         shader: &CutsShader<'_>,
         light: &LightCut,
         tri: u32,
         spread: bool,
+        mut record: Option<&mut Vec<Cluster>>,
     ) {
         self.sums = [Vec3::ZERO; 3];
         self.spread = spread;
@@ -71,15 +74,7 @@ impl TriangleCut {
             shader.bake.cuts.cut(b as usize),
             shader.bake.cuts.cut(c as usize),
         ];
-        let bound = (light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>())
-            .next_multiple_of(LANES);
-        if self.power[0].len() < bound {
-            for a in [&mut self.power, &mut self.vis, &mut self.dir] {
-                a.iter_mut().for_each(|x| x.resize(bound, 0.0));
-            }
-            self.ring_cos.resize(bound, 1.0);
-            self.node.resize(bound, 0);
-        }
+        self.reserve(light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>());
         let keys = [
             CutKeys::from(light),
             cuts[0].into(),
@@ -98,6 +93,14 @@ impl TriangleCut {
             if q == [0; 3] || power == Vec3::ZERO {
                 return;
             }
+            if let Some(r) = record.as_deref_mut() {
+                debug_assert!(pos[0] <= u16::MAX as usize);
+                r.push(Cluster {
+                    node: node.index,
+                    light: pos[0] as u16,
+                    vis: q,
+                });
+            }
             let dir = light.direction(node.index);
             self.node[n] = node.index;
             self.ring_cos[n] = if spread && light.spreads(node.index) {
@@ -114,9 +117,55 @@ impl TriangleCut {
             }
             n += 1;
         });
+        self.finish(n, sums);
+    }
+
+    /// Triangle `tri`'s merged cut into `self` from its record `cut` (`shade_cuts::cache`,
+    /// whose tables `cache` holds) instead of the traversal: the same arithmetic in the same
+    /// order as [`TriangleCut::build`], so the same bits.
+    pub(super) fn expand(
+        &mut self,
+        light: &LightCut,
+        cache: &MergedCache,
+        cut: &[Cluster],
+        spread: bool,
+    ) {
+        self.spread = spread;
+        self.reserve(cut.len());
+        let mut sums = [Vec3::ZERO; 3];
+        for (n, c) in cut.iter().enumerate() {
+            let node = c.node as usize;
+            let info = cache.nodes[node];
+            let power = light.value[c.light as usize] * cache.leaves[node];
+            self.node[n] = c.node;
+            self.ring_cos[n] = if spread { info.ring_cos } else { 1.0 };
+            for j in 0..3 {
+                let v = dequantise(c.vis[j]);
+                sums[j] += power * v;
+                self.vis[j][n] = v;
+                self.power[j][n] = power[j];
+                self.dir[j][n] = info.dir[j];
+            }
+        }
+        self.finish(cut.len(), sums);
+    }
+
+    /// Room for `clusters` clusters (padding included).
+    fn reserve(&mut self, clusters: usize) {
+        let bound = clusters.next_multiple_of(LANES);
+        if self.power[0].len() < bound {
+            for a in [&mut self.power, &mut self.vis, &mut self.dir] {
+                a.iter_mut().for_each(|x| x.resize(bound, 0.0));
+            }
+            self.ring_cos.resize(bound, 1.0);
+            self.node.resize(bound, 0);
+        }
+    }
+
+    /// `n` clusters written, their `sums`: pad the last lane group with zero clusters.
+    fn finish(&mut self, n: usize, sums: [Vec3; 3]) {
         self.sums = sums;
         self.len = n.next_multiple_of(LANES);
-        // Zero clusters pad the last lane group.
         for a in [&mut self.power, &mut self.vis, &mut self.dir] {
             a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
         }
