@@ -196,8 +196,9 @@ impl<'a> CutsShader<'a> {
     }
 
     /// [`CutsShader::render`] stopped after `stage` (the time split of `relight bench`):
-    /// the fragments are black before [`CutsStage::Full`]. The corner lists are built first
-    /// if `light` is not the cached one.
+    /// the fragments are black before [`CutsStage::Full`]. If `light` is not the cached one,
+    /// the corner lists are built first and the kept merged cuts dropped
+    /// ([`CutsShader::prepare`]).
     ///
     /// # Panics
     /// As [`CutsShader::render`].

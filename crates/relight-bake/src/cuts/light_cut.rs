@@ -104,6 +104,17 @@ impl LightCut {
         sum * 0.2
     }
 
+    /// `cos theta_p` of tree node `node`'s five-point rule if its cluster spreads
+    /// ([`LightCut::spreads`]), else exactly 1 (one evaluation at its direction).
+    #[inline]
+    pub fn rule_cos(&self, node: u32) -> f32 {
+        if self.spreads(node) {
+            self.spread_cos[node as usize]
+        } else {
+            1.0
+        }
+    }
+
     /// Whether tree node `node`'s cluster is averaged by the five-point rule
     /// ([`LightCut::spread_average`]): wider than [`SPREAD_MIN_ANGLE`].
     #[inline]

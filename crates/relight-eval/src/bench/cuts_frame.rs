@@ -146,6 +146,11 @@ pub(super) fn section(
             let spread = relight_method::cuts::CutsFrameSettings::default().cluster_spread;
             let shader = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
                 .with_cluster_spread(spread);
+            // Nothing kept: every visible triangle merged at every frame, as in the first
+            // frame after a change of light cut (a new environment or rotation).
+            let uncached = CutsShader::new(&mesh, shader_materials, &bake, function)
+                .with_cluster_spread(spread)
+                .with_merge_cache(0);
             let budgets: &[usize] = if quick { &[256] } else { &LIGHT_CUT_BUDGETS };
             for &budget in budgets {
                 let light = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
@@ -185,11 +190,6 @@ pub(super) fn section(
                 }
                 let (frame, frame_cpu) = (median(ms), cpu / frames as f64);
                 let kept = shader.merge_cache_bytes();
-                // Every visible triangle merged: the first frame after a change of light
-                // cut (a new environment or rotation).
-                let uncached = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
-                    .with_cluster_spread(spread)
-                    .with_merge_cache(0);
                 uncached.prepare(&light);
                 let (all_merged, all_merged_cpu) =
                     time(&|| uncached.render(&light, &camera, None, &opts));

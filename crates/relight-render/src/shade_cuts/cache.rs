@@ -55,8 +55,7 @@ pub(super) struct Cluster {
 pub(super) struct NodeInfo {
     /// The node's direction ([`LightCut::direction`]).
     pub dir: [f32; 3],
-    /// `cos theta_p` of its five-point rule when the cluster spreads
-    /// ([`LightCut::spreads`]), else 1.
+    /// [`LightCut::rule_cos`]: `cos theta_p` of its five-point rule, 1 if it does not spread.
     pub ring_cos: f32,
 }
 
@@ -95,19 +94,10 @@ impl MergedCache {
         let nodes = (0..tree.nodes().len() as u32)
             .map(|p| NodeInfo {
                 dir: light.direction(p).to_array(),
-                ring_cos: if light.spreads(p) {
-                    light.spread_cos[p as usize]
-                } else {
-                    1.0
-                },
+                ring_cos: light.rule_cos(p),
             })
             .collect();
-        let leaves = tree
-            .nodes()
-            .iter()
-            .enumerate()
-            .map(|(p, n)| ((p as u32 - n.leftleaf) / 2 + 1) as f32)
-            .collect();
+        let leaves = tree.nodes().iter().map(|n| n.leaves as f32).collect();
         Some(MergedCache {
             slots: (0..shader.mesh.indices.len())
                 .map(|_| Slot::default())

@@ -62,10 +62,7 @@ fn ggx_avx2(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
 
 #[inline(always)]
 fn ggx_body(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
-    let [sum] = spread_sums(g, f.b, |x, y, z| {
-        let (_, hn, hh) = half_vector(f, x, y, z);
-        [ggx_term(f, x, y, z, hn, hh)]
-    });
+    let [sum] = spread_sums(g, f.b, |x, y, z| [ggx_term(f, x, y, z)]);
     sum
 }
 
@@ -110,7 +107,8 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
     let inv_eta2 = 1.0 / (eta * eta);
     // Two passes of one output each (the loop with two outputs did not vectorise).
     let [spec] = spread_sums(g, gf.b, |x, y, z| {
-        let (_, hn, hh) = half_vector(gf, x, y, z);
+        let g = ggx_ratio(gf, x, y, z);
+        let hh = g.hh;
         // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0. For unit `v`
         // and `w`, `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i = |h| / 2` and
         // `cos_i^2 = |h|^2 / 4`: one square root, no division.
@@ -126,10 +124,8 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
         let num = if tir { 1.0 } else { 0.5 * (ad * ad + cb * cb) };
         let den = if tir { 1.0 } else { bd * bd };
         // The GGX term and the reflectance over one division ([`ggx_ratio`]).
-        let (gn, gd) = ggx_ratio(gf, x, y, z, hn, hh);
-        let co = gf.n.x * x + gf.n.y * y + gf.n.z * z;
-        let y = gn * num / (gd * den);
-        [if co > 0.0 && hn > 0.0 { y } else { 0.0 }]
+        let y = g.num * num / (g.den * den);
+        [if g.lit { y } else { 0.0 }]
     });
     // `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the table's lookup, a gather).
     let t = f.transmittance;
@@ -199,16 +195,7 @@ fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
     }
 }
 
-/// `h = v + w`, `n . h` and `|h|^2` for direction `(x, y, z)`.
-#[inline(always)]
-fn half_vector(f: &GgxFragment, x: f32, y: f32, z: f32) -> ([f32; 3], f32, f32) {
-    let (n, v) = (f.n, f.v);
-    let h = [v.x + x, v.y + y, v.z + z];
-    let hn = n.x * h[0] + n.y * h[1] + n.z * h[2];
-    (h, hn, h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
-}
-
-/// `G1(w) / s^2` of unit direction `w = (x, y, z)` with `n . h` and `|h|^2` ([`half_vector`]),
+/// `G1(w) / s^2` of unit direction `w = (x, y, z)` (`h = v + w`),
 /// `0` unless `n . w > 0` and `n . h > 0`: `c^2 = (n . h)^2 / |h|^2`,
 /// `s = (1 - c^2) / a^2 + c^2` (`D = 1 / (pi a^2 s^2)`) and
 /// `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`, `c_w = n . w` (height-separable
@@ -217,29 +204,47 @@ fn half_vector(f: &GgxFragment, x: f32, y: f32, z: f32) -> ([f32; 3], f32, f32) 
 /// (1 - a^2) = a^2 |h|^2 s` and `q = c_w^2 + a^2 max(0, 1 - c_w^2) = c_w^2 (1 + tan^2)`,
 /// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`.
 #[inline(always)]
-fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> f32 {
-    let n = f.n;
-    let co = n.x * x + n.y * y + n.z * z;
-    let (num, den) = ggx_ratio(f, x, y, z, hn, hh);
-    let y = num / den;
-    if co > 0.0 && hn > 0.0 {
+fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32) -> f32 {
+    let g = ggx_ratio(f, x, y, z);
+    let y = g.num / g.den;
+    if g.lit {
         y
     } else {
         0.0
     }
 }
 
-/// [`ggx_term`] before its division and its mask: `(2 c_w a^4 |h|^4, (c_w + sqrt q) t^2)`,
-/// so that a caller multiplying it by another ratio divides once (the plastic's Fresnel).
+/// [`ggx_term`] before its division and its mask ([`ggx_ratio`]).
+struct GgxRatio {
+    /// `2 c_w a^4 |h|^4`.
+    num: f32,
+    /// `(c_w + sqrt q) t^2`.
+    den: f32,
+    /// `|h|^2`.
+    hh: f32,
+    /// Whether the term counts: `n . w > 0` and `n . h > 0`.
+    lit: bool,
+}
+
+/// [`ggx_term`]'s ratio, undivided, so that a caller multiplying it by another ratio
+/// divides once (the plastic's Fresnel), with `|h|^2` and the mask.
 #[inline(always)]
-fn ggx_ratio(f: &GgxFragment, x: f32, y: f32, z: f32, hn: f32, hh: f32) -> (f32, f32) {
-    let (n, a2) = (f.n, f.a2);
+fn ggx_ratio(f: &GgxFragment, x: f32, y: f32, z: f32) -> GgxRatio {
+    let (n, v, a2) = (f.n, f.v, f.a2);
+    let h = [v.x + x, v.y + y, v.z + z];
+    let hn = n.x * h[0] + n.y * h[1] + n.z * h[2];
+    let hh = h[0] * h[0] + h[1] * h[1] + h[2] * h[2];
     let co = n.x * x + n.y * y + n.z * z;
     let co2 = co * co;
     let t = hh - hn * hn * (1.0 - a2);
     let q = co2 + a2 * (1.0 - co2).max(0.0);
     let a2hh = a2 * hh;
-    (2.0 * co * a2hh * a2hh, (co + q.sqrt()) * (t * t))
+    GgxRatio {
+        num: 2.0 * co * a2hh * a2hh,
+        den: (co + q.sqrt()) * (t * t),
+        hh,
+        lit: co > 0.0 && hn > 0.0,
+    }
 }
 
 /// `sum_k power_k (b . vis_k) term_k` for each of the `K` outputs of `term` (a function of a

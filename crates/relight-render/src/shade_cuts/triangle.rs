@@ -103,8 +103,8 @@ impl TriangleCut {
             }
             let dir = light.direction(node.index);
             self.node[n] = node.index;
-            self.ring_cos[n] = if spread && light.spreads(node.index) {
-                light.spread_cos[node.index as usize]
+            self.ring_cos[n] = if spread {
+                light.rule_cos(node.index)
             } else {
                 1.0
             };
