@@ -107,12 +107,22 @@ fn errors_by_lobes(
     fit: bake_sg::SgFitSettings,
     shades: &[ShadeOptions],
 ) -> (Vec<Vec<f64>>, f64) {
+    errors_up_to(scene, fit, shades, 3)
+}
+
+/// [`errors_by_lobes`] for 1 to `most` direct lobes.
+fn errors_up_to(
+    scene: &Scene,
+    fit: bake_sg::SgFitSettings,
+    shades: &[ShadeOptions],
+    most: usize,
+) -> (Vec<Vec<f64>>, f64) {
     let caster = relight_scene::accel::build_default(&scene.mesh);
     let (reference, variance) = reference(scene, caster.as_ref());
     let lighting = SgLighting::new(&scene.env, 3, 128);
     let mut errors = vec![vec![]; shades.len()];
     let mut mask = vec![];
-    for lobes in 1..=3 {
+    for lobes in 1..=most {
         let settings = SgBakeSettings {
             // 16 texels per face resolve these lobes (sharpness up to 64, a GGX alpha of
             // about 0.1 seen head-on) and keep the test fast.
@@ -252,14 +262,19 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
 /// Issue 10 items 1 and 3: GGX-kernel lobes in the half-vector domain, nested (the only
 /// order the settings take for two or more there), through their default frame
 /// (`ShadeOptions::default_for`: one lobe blended linearly; two or more views by energy,
-/// corners linear, unmatched):
-/// each added lobe is no worse than one fewer, on both small scenes. Also printed, not
-/// asserted: every lobe count through both frames. Measured 2026-12-03 with the default
-/// frame: sphere 0.0750, 0.0808, 0.1070 (noise 0.0368), shadowed highlight 0.2102, 0.2143,
-/// 0.2239 (noise 0.0363): each step within one noise, the trend upward on these 16-texel
-/// scenes. The linear frame at every count gave 0.075, 0.081, 0.108 and 0.210, 0.230, 0.245;
-/// on St Peter's conductor it gave 8.1, 16.3, 12.4 % against 8.1, 8.1, 8.3 % with the
-/// default (docs/RESULTS.md §8, sessions 29-30).
+/// corners linear, unmatched): each added lobe, up to four (the item's `N + 1` for
+/// `N = 1..3`), is no worse than one fewer within the reference's noise, on both small
+/// scenes. Also printed, not asserted: every lobe count through both frames. Measured
+/// 2026-12-04 with the default frame: sphere 0.0750, 0.0808, 0.1070, 0.1249 (noise 0.0368),
+/// shadowed highlight 0.2102, 0.2143, 0.2239, 0.2516 (noise 0.0363). Each step is within one
+/// noise, **but the trend is upward**: four lobes are 1.4 and 1.1 noises worse than one on
+/// these coarse 16-texel scenes (a 4x denser sphere: 0.0643, 0.0671, 0.0847 for 1-3), while
+/// the evaluation's scenes are flat within a sixth of their noise (Spot 9.2 / 9.3 / 9.2 /
+/// 10.0 %, St Peter's 8.1 / 8.1 / 8.3 / 8.5 %; docs/RESULTS.md §8, sessions 29-32). The
+/// cause (the joint refinement moves the first lobe) and the options tried against it are in
+/// docs/RESULTS.md §8, session 32. The linear frame at every count gave 0.075, 0.081, 0.108
+/// and 0.210, 0.230, 0.245 for 1-3 lobes; on St Peter's conductor it gave 8.1, 16.3, 12.4 %
+/// against 8.1, 8.1, 8.3 % with the default.
 #[test]
 fn more_half_vector_lobes_are_never_worse() {
     let fit = bake_sg::SgFitSettings {
@@ -277,13 +292,13 @@ fn more_half_vector_lobes_are_never_worse() {
     };
     assert_eq!(frame(1), ShadeOptions::PAPER);
     let nested = ShadeOptions::NESTED_HALF_VECTOR;
-    assert_eq!((frame(2), frame(3)), (nested, nested));
+    assert_eq!((frame(2), frame(3), frame(4)), (nested, nested, nested));
     for (name, scene) in [
         ("sphere", sphere_scene()),
         ("shadowed highlight", shadowed_highlight_scene()),
     ] {
-        let (errors, noise) = errors_by_lobes(&scene, fit, &[ShadeOptions::PAPER, nested]);
-        let default = [errors[0][0], errors[1][1], errors[1][2]];
+        let (errors, noise) = errors_up_to(&scene, fit, &[ShadeOptions::PAPER, nested], 4);
+        let default = [errors[0][0], errors[1][1], errors[1][2], errors[1][3]];
         eprintln!(
             "{name}: relative RMSE by lobe count, default frame {default:?}; linear {:?}, views by energy {:?}; reference noise {noise:.4}",
             errors[0], errors[1]
