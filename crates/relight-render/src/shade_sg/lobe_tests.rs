@@ -99,19 +99,10 @@ fn shadowed_highlight_scene() -> Scene {
     }
 }
 
-/// Relative RMSE of the frame against the path tracer for 1, 2 and 3 direct lobes baked
+/// Relative RMSE of the frame against the path tracer for 1 to `most` direct lobes baked
 /// with `fit`, each bake rendered with every one of `shades` (`errors[s][lobes - 1]`), and
 /// the reference's relative noise.
 fn errors_by_lobes(
-    scene: &Scene,
-    fit: bake_sg::SgFitSettings,
-    shades: &[ShadeOptions],
-) -> (Vec<Vec<f64>>, f64) {
-    errors_up_to(scene, fit, shades, 3)
-}
-
-/// [`errors_by_lobes`] for 1 to `most` direct lobes.
-fn errors_up_to(
     scene: &Scene,
     fit: bake_sg::SgFitSettings,
     shades: &[ShadeOptions],
@@ -205,6 +196,7 @@ fn more_direct_lobes_are_never_worse() {
         &sphere_scene(),
         Default::default(),
         &[ShadeOptions::default()],
+        3,
     );
     let errors = &errors[0];
     eprintln!("relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
@@ -228,7 +220,7 @@ fn more_moment_shaped_lobes_are_never_worse() {
         lobe_shape: bake_sg::LobeShape::Moments,
         ..Default::default()
     };
-    let (errors, noise) = errors_by_lobes(&sphere_scene(), fit, &[ShadeOptions::default()]);
+    let (errors, noise) = errors_by_lobes(&sphere_scene(), fit, &[ShadeOptions::default()], 3);
     let errors = &errors[0];
     eprintln!("moments: relative RMSE by lobe count {errors:?}, reference noise {noise:.4}");
     assert!(monotone(errors, noise), "{errors:?} (noise {noise})");
@@ -247,6 +239,7 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
         &shadowed_highlight_scene(),
         Default::default(),
         &[ShadeOptions::default()],
+        3,
     );
     eprintln!(
         "relative RMSE by lobe count {:?}, reference noise {noise:.4}",
@@ -297,7 +290,7 @@ fn more_half_vector_lobes_are_never_worse() {
         ("sphere", sphere_scene()),
         ("shadowed highlight", shadowed_highlight_scene()),
     ] {
-        let (errors, noise) = errors_up_to(&scene, fit, &[ShadeOptions::PAPER, nested], 4);
+        let (errors, noise) = errors_by_lobes(&scene, fit, &[ShadeOptions::PAPER, nested], 4);
         let default = [errors[0][0], errors[1][1], errors[1][2], errors[1][3]];
         eprintln!(
             "{name}: relative RMSE by lobe count, default frame {default:?}; linear {:?}, views by energy {:?}; reference noise {noise:.4}",
