@@ -107,10 +107,11 @@ impl<'a> CutsShader<'a> {
         }
     }
 
-    /// With `on`, every material that is not purely diffuse has its BRDF averaged over each
-    /// merged cluster's spread ([`LightCut::spread_average`], five evaluations where a
+    /// With `on`, every material that is not purely diffuse has its glossy lobe averaged over
+    /// each merged cluster's spread ([`LightCut::spread_lobes`], five evaluations where a
     /// cluster is wider than [`relight_bake::cuts::light_cut::SPREAD_MIN_ANGLE`]) instead of
-    /// evaluated at the cluster's direction alone; Lambert keeps its one evaluation.
+    /// evaluated at the cluster's direction alone; diffuse lobes (a plastic's base, Lambert)
+    /// keep their one evaluation.
     pub fn with_cluster_spread(mut self, on: bool) -> Self {
         self.spread = on;
         self
@@ -166,7 +167,7 @@ impl<'a> CutsShader<'a> {
         let [a, b, c] = self.mesh.indices[f.tri as usize];
         let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
         shade(light, cuts, f.bary, self.spreads(material), |w| {
-            self.brdf(material, wi, frame.to_local(w))
+            self.lobes(material, wi, frame.to_local(w))
         })
     }
 
@@ -434,11 +435,12 @@ impl<'a> CutsShader<'a> {
                     for k in 0..t.len() {
                         let (power, v, dir, node) = t.cluster(k, b);
                         if v > 0.0 {
-                            let f = |w: Vec3| self.brdf(material, wi, frame.to_local(w));
+                            let f = |w: Vec3| self.lobes(material, wi, frame.to_local(w));
                             let f = if t.spread {
-                                light.spread_average(node, f)
+                                light.spread_lobes(node, f)
                             } else {
-                                f(dir)
+                                let [glossy, diffuse] = f(dir);
+                                glossy + diffuse
                             };
                             sum += power * v * f;
                         }
@@ -474,10 +476,11 @@ impl<'a> CutsShader<'a> {
         }
     }
 
-    /// The BRDF factor of one merged cluster in the shading frame ([`cluster_brdf`]).
+    /// The BRDF factor of one merged cluster in the shading frame as its `[glossy, diffuse]`
+    /// lobes ([`cluster_lobes`]).
     #[inline]
-    fn brdf(&self, material: &MaterialEval, wi: Vec3, wo: Vec3) -> Vec3 {
-        cluster_brdf(self.function, material, wi, wo)
+    fn lobes(&self, material: &MaterialEval, wi: Vec3, wo: Vec3) -> [Vec3; 2] {
+        cluster_lobes(self.function, material, wi, wo)
     }
 }
 
@@ -536,6 +539,19 @@ pub(crate) fn cluster_brdf(
     wi: Vec3,
     wo: Vec3,
 ) -> Vec3 {
+    let [glossy, diffuse] = cluster_lobes(function, material, wi, wo);
+    glossy + diffuse
+}
+
+/// [`cluster_brdf`] as the material's `[glossy, diffuse]` lobes (`MaterialEval::lobes`), for
+/// [`LightCut::spread_lobes`].
+#[inline]
+pub(crate) fn cluster_lobes(
+    function: CutFunction,
+    material: &MaterialEval,
+    wi: Vec3,
+    wo: Vec3,
+) -> [Vec3; 2] {
     match function {
         CutFunction::VisibilityCosine => {
             let wo = if wo.z >= HORIZON {
@@ -543,8 +559,8 @@ pub(crate) fn cluster_brdf(
             } else {
                 Vec3::new(wo.x, wo.y, HORIZON).normalize()
             };
-            material.eval(wi, wo) / wo.z
+            material.lobes(wi, wo).map(|l| l / wo.z)
         }
-        CutFunction::Visibility => material.eval(wi, wo),
+        CutFunction::Visibility => material.lobes(wi, wo),
     }
 }

@@ -200,6 +200,14 @@ impl MaterialEval {
         self.material.eval_with(self.tables.as_deref(), wi, wo)
     }
 
+    /// [`Material::eval`] as its `[glossy, diffuse]` lobes, whose sum it is (for renderers
+    /// that average the two lobes differently over a cluster of directions, e.g.
+    /// `relight_render::shade_cuts`).
+    #[inline]
+    pub fn lobes(&self, wi: Vec3, wo: Vec3) -> [Vec3; 2] {
+        self.material.lobes_with(self.tables.as_deref(), wi, wo)
+    }
+
     /// The plastic's tables (`Some` exactly for [`Material::GgxPlastic`]), for renderers that
     /// evaluate its terms themselves.
     #[inline]
@@ -219,15 +227,31 @@ impl Material {
         }
     }
 
+    /// [`Material::eval`] as its `[glossy, diffuse]` lobes, whose sum it is
+    /// ([`MaterialEval::lobes`]).
+    pub fn lobes(&self, wi: Vec3, wo: Vec3) -> [Vec3; 2] {
+        MaterialEval::new(*self).lobes(wi, wo)
+    }
+
     /// [`Material::eval`] with the plastic's tables given (`Some` for [`Material::GgxPlastic`]:
-    /// [`MaterialEval`] fetches them once for many directions).
+    /// [`MaterialEval`] fetches them once for many directions): the sum of
+    /// [`Material::lobes_with`]'s two lobes.
     fn eval_with(&self, tables: Option<&PlasticTables>, wi: Vec3, wo: Vec3) -> Vec3 {
+        let [glossy, diffuse] = self.lobes_with(tables, wi, wo);
+        glossy + diffuse
+    }
+
+    /// [`Material::eval`] split into its glossy (view-dependent) and diffuse lobes,
+    /// `[glossy, diffuse]`, whose sum it is: Lambert `[0, albedo / pi cos]`; Blinn-Phong and
+    /// Ward their specular and `diffuse / pi cos` terms; the GGX conductor `[D G F, 0]`; the
+    /// GGX plastic its coating's specular term and the diffuse base seen through the coating.
+    fn lobes_with(&self, tables: Option<&PlasticTables>, wi: Vec3, wo: Vec3) -> [Vec3; 2] {
         let (ci, co) = (wi.z, wo.z);
         if ci <= 0.0 || co <= 0.0 {
-            return Vec3::ZERO;
+            return [Vec3::ZERO; 2];
         }
         match *self {
-            Material::Lambert { albedo } => albedo * (FRAC_1_PI * co),
+            Material::Lambert { albedo } => [Vec3::ZERO, albedo * (FRAC_1_PI * co)],
             Material::BlinnPhong {
                 diffuse,
                 specular,
@@ -235,11 +259,11 @@ impl Material {
             } => {
                 let h = (wi + wo).normalize();
                 let lobe = (exponent + 8.0) * (FRAC_1_PI / 8.0) * h.z.max(0.0).powf(exponent);
-                (diffuse * FRAC_1_PI + specular * lobe) * co
+                [specular * (lobe * co), diffuse * (FRAC_1_PI * co)]
             }
             Material::GgxConductor { specular, alpha } => {
                 let (_, dg) = ggx_reflection(wi, wo, alpha);
-                specular * dg
+                [specular * dg, Vec3::ZERO]
             }
             Material::GgxPlastic {
                 diffuse,
@@ -252,7 +276,7 @@ impl Material {
                 let spec = specular * (mf::fresnel_dielectric(wi.dot(h), ior) * dg);
                 let diff = diffuse / (1.0 - t.internal_reflectance)
                     * (FRAC_1_PI / (ior * ior) * co * t.transmittance(ci) * t.transmittance(co));
-                spec + diff
+                [spec, diff]
             }
             Material::Ward {
                 diffuse,
@@ -260,7 +284,10 @@ impl Material {
                 alpha_x,
                 alpha_y,
                 ..
-            } => diffuse * (FRAC_1_PI * co) + specular * ward::eval(wi, wo, alpha_x, alpha_y),
+            } => [
+                specular * ward::eval(wi, wo, alpha_x, alpha_y),
+                diffuse * (FRAC_1_PI * co),
+            ],
         }
     }
 

@@ -33,7 +33,12 @@
 //! directions around it at the angle `theta_p` of the symmetric five-point rule whose mean
 //! resultant length matches the cluster's, `(1 + 4 cos theta_p) / 5 = R` with `R = |sum y_i
 //! w_i| / sum y_i` (the first moment of its lights' directions; `cos theta_p` clamped to
-//! `[-1, 1]`). Clusters with `theta_p` below [`SPREAD_MIN_ANGLE`] keep one evaluation.
+//! `[-1, 1]`). Clusters with `theta_p` below [`SPREAD_MIN_ANGLE`] keep one evaluation. Only a
+//! material's glossy lobe is spread ([`LightCut::spread_lobes`]); its diffuse lobe (a GGX
+//! plastic's base, Blinn-Phong's and Ward's diffuse terms) is evaluated at `mu` alone, as a
+//! Lambert material always is: it is smooth over a cluster, and its five evaluations (a
+//! transmittance table looked up at each) were half of the plastic's CPU frame
+//! (docs/RESULTS.md §11, session 33, with its effect on the error against the path tracer).
 
 use super::cut::{select_cut, Keyed, NodeStats};
 use super::tree::{LightTree, NodeKind};
@@ -102,6 +107,27 @@ impl LightCut {
             sum += brdf(f.s * x + f.t * y + f.n * c);
         }
         sum * 0.2
+    }
+
+    /// A BRDF given as `[glossy, diffuse]` lobes (`MaterialEval::lobes`) averaged over tree
+    /// node `node`'s cluster: the glossy lobe by the five-point rule ([`LightCut::spread_average`]),
+    /// the diffuse lobe at the cluster's direction alone, as a Lambert material is (module
+    /// docs, "Cluster spread": a diffuse lobe is smooth, and one evaluation instead of five
+    /// is what makes a plastic's frame affordable).
+    #[inline]
+    pub fn spread_lobes(&self, node: u32, mut lobes: impl FnMut(Vec3) -> [Vec3; 2]) -> Vec3 {
+        let [glossy, diffuse] = lobes(self.direction(node));
+        if !self.spreads(node) {
+            return glossy + diffuse;
+        }
+        let c = self.spread_cos[node as usize];
+        let s = (1.0 - c * c).max(0.0).sqrt();
+        let f = relight_sphere::warp::Frame::from_normal(self.direction(node));
+        let mut sum = glossy;
+        for (x, y) in [(s, 0.0), (-s, 0.0), (0.0, s), (0.0, -s)] {
+            sum += lobes(f.s * x + f.t * y + f.n * c)[0];
+        }
+        sum * 0.2 + diffuse
     }
 
     /// `cos theta_p` of tree node `node`'s five-point rule if its cluster spreads
@@ -366,6 +392,31 @@ mod tests {
             }
         }
         assert!(wide > 100, "the tree has wide clusters: {wide}");
+    }
+
+    /// `spread_lobes` averages the glossy lobe as `spread_average` does and takes the diffuse
+    /// lobe at the cluster's direction, on every node of a tree with wide clusters.
+    #[test]
+    fn spread_lobes_spread_the_glossy_lobe_only() {
+        let (_, t, power) = setup(2048);
+        let c = LightCut::build(&t, &power, 2.0, 64).unwrap();
+        let glossy = |w: Vec3| Vec3::new(w.x.max(0.0).powi(8), w.y * w.y, 1.0 + w.z);
+        let diffuse = |w: Vec3| Vec3::new(0.5 + w.x, w.y.max(0.0), 2.0);
+        let mut differs = 0;
+        for p in 0..t.nodes().len() as u32 {
+            let got = c.spread_lobes(p, |w| [glossy(w), diffuse(w)]);
+            let want = c.spread_average(p, glossy) + diffuse(c.direction(p));
+            assert!(
+                (got - want).abs().max_element() < 1e-5,
+                "node {p}: {got} vs {want}"
+            );
+            let all_spread = c.spread_average(p, |w| glossy(w) + diffuse(w));
+            differs += usize::from((all_spread - got).abs().max_element() > 1e-4);
+        }
+        assert!(
+            differs > 100,
+            "the diffuse lobe is not spread: {differs} nodes differ"
+        );
     }
 
     #[test]

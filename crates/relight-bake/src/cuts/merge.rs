@@ -154,14 +154,15 @@ pub fn interpolate<const N: usize>(
 /// visibility cuts interpolated with barycentric weights `bary`, and the BRDF `brdf(w)`
 /// (without the cosine, which the visibility holds) sampled at each merged cluster's
 /// direction ([`LightCut::direction`]: its lights' luminance-weighted mean direction), all in
-/// one traversal: `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`. With `spread`,
-/// `f_r` is averaged over each cluster ([`LightCut::spread_average`]).
+/// one traversal: `B = sum_k |C'_k| <l>_k (sum_j bary_j <v_j>_k) f_r(<w>_k)`. `brdf` gives
+/// `f_r` as its `[glossy, diffuse]` lobes; with `spread`, the glossy lobe is averaged over
+/// each cluster ([`LightCut::spread_lobes`]).
 pub fn shade(
     light: &LightCut,
     vertices: [CutRef<'_>; 3],
     bary: [f32; 3],
     spread: bool,
-    mut brdf: impl FnMut(Vec3) -> Vec3,
+    mut brdf: impl FnMut(Vec3) -> [Vec3; 2],
 ) -> Vec3 {
     let keys = [
         CutKeys::from(light),
@@ -177,9 +178,10 @@ pub fn shade(
         if v > 0.0 {
             let l = light.value[pos[0]] * node.leaves() as f32;
             let f = if spread {
-                light.spread_average(node.index, &mut brdf)
+                light.spread_lobes(node.index, &mut brdf)
             } else {
-                brdf(light.direction(node.index))
+                let [glossy, diffuse] = brdf(light.direction(node.index));
+                glossy + diffuse
             };
             sum += l * v * f;
         }

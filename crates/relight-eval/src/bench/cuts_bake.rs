@@ -356,7 +356,7 @@ fn shade_section(
                 let frame = Frame::from_normal(n);
                 let wi = frame.to_local((n + Vec3::new(0.3, 0.2, 0.1)).normalize());
                 let vc = [0, 1, 2].map(|k| cuts.cut(t[k] as usize));
-                acc += shade(&lc, vc, bary, false, |w| mat.eval(wi, frame.to_local(w)));
+                acc += shade(&lc, vc, bary, false, |w| mat.lobes(wi, frame.to_local(w)));
             }
             std::hint::black_box(acc);
             let us = t0.elapsed().as_secs_f64() * 1e6 / pixels as f64;

@@ -8,8 +8,9 @@
 // with b_j the perspective-correct barycentric weights, <v_j>_k the corner's quantised mean
 // (u16 / 65535) and f the material's BRDF (Material::eval: Lambert, the GGX conductor and
 // the GGX plastic) at the cluster's luminance-weighted
-// direction w_k, or averaged over its spread by the five-point rule (LightCut::spread_average)
-// for materials that are not purely diffuse when the spread is on.
+// direction w_k, or, for materials that are not purely diffuse when the spread is on, its
+// glossy lobe averaged over the cluster's spread by the five-point rule and its diffuse lobe
+// at w_k (LightCut::spread_lobes).
 //
 // Cuts buffer (u32 words): vertex_count + 1 offsets, then (index, leftleaf) pairs from
 // params.keys_base, then the quantised means, two u16 per word (low half first), from
@@ -169,20 +170,26 @@ fn transmittance(base: u32, x: f32) -> f32 {
     return tables[base + i] * (1.0 - w) + tables[base + i + 1u] * w;
 }
 
-// Material::eval (the BSDF times max(0, cos theta_o)) in the shading frame.
-fn eval_material(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
+// Material::eval (the BSDF times max(0, cos theta_o)) in the shading frame, as its glossy and
+// diffuse lobes (MaterialEval::lobes), whose sum it is.
+struct Lobes {
+    glossy: vec3<f32>,
+    diffuse: vec3<f32>,
+}
+
+fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> Lobes {
     if (wi.z <= 0.0 || wo.z <= 0.0) {
-        return vec3<f32>(0.0);
+        return Lobes(vec3<f32>(0.0), vec3<f32>(0.0));
     }
     if (m.kind == 0u) {
-        return m.color.xyz * (wo.z / PI);
+        return Lobes(vec3<f32>(0.0), m.color.xyz * (wo.z / PI));
     }
     // ggx_reflection: the half vector and D G / (4 cos theta_i).
     let h = normalize(wi + wo);
     let g = smith_g1(wi, h, m.alpha) * smith_g1(wo, h, m.alpha);
     let dg = ggx_d(h, m.alpha) * g / (4.0 * wi.z);
     if (m.kind == 1u) {
-        return m.color.xyz * dg;
+        return Lobes(m.color.xyz * dg, vec3<f32>(0.0));
     }
     // The plastic: the coating's specular term and the diffuse base seen through it.
     let spec = m.color.xyz * (fresnel_dielectric(dot(wi, h), m.ior) * dg);
@@ -190,37 +197,40 @@ fn eval_material(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> vec3<f32> {
     let to = transmittance(m.table, wo.z);
     let diff = m.diffuse.xyz / (1.0 - m.internal_reflectance)
         * ((1.0 / PI) / (m.ior * m.ior) * wo.z * ti * to);
-    return spec + diff;
+    return Lobes(spec, diff);
 }
 
-// shade_cuts::cluster_brdf: the BRDF towards world direction w.
-fn cluster_brdf(m: CutsMaterial, f: Frame, wi: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+// shade_cuts::cluster_lobes: the BRDF's lobes towards world direction w.
+fn cluster_lobes(m: CutsMaterial, f: Frame, wi: vec3<f32>, w: vec3<f32>) -> Lobes {
     var wo = to_local(f, w);
     if (params.cosine_in_cuts == 0u) {
-        return eval_material(m, wi, wo);
+        return eval_lobes(m, wi, wo);
     }
     if (wo.z < HORIZON) {
         wo = normalize(vec3<f32>(wo.x, wo.y, HORIZON));
     }
-    return eval_material(m, wi, wo) / wo.z;
+    let l = eval_lobes(m, wi, wo);
+    return Lobes(l.glossy / wo.z, l.diffuse / wo.z);
 }
 
-// LightCut::spread_average (or the cluster's direction alone).
+// LightCut::spread_lobes (or the cluster's direction alone): the glossy lobe averaged by the
+// five-point rule, the diffuse lobe at the cluster's direction.
 fn cluster_f(m: CutsMaterial, f: Frame, wi: vec3<f32>, node: u32) -> vec3<f32> {
     let d = dirs[node];
     let mu = d.xyz;
     let c = d.w;
+    let centre = cluster_lobes(m, f, wi, mu);
     if (m.spread == 0u || c >= 1.0) {
-        return cluster_brdf(m, f, wi, mu);
+        return centre.glossy + centre.diffuse;
     }
     let s = sqrt(max(1.0 - c * c, 0.0));
     let g = frame_from_normal(mu);
-    var sum = cluster_brdf(m, f, wi, mu);
-    sum += cluster_brdf(m, f, wi, g.s * s + g.n * c);
-    sum += cluster_brdf(m, f, wi, g.s * (-s) + g.n * c);
-    sum += cluster_brdf(m, f, wi, g.t * s + g.n * c);
-    sum += cluster_brdf(m, f, wi, g.t * (-s) + g.n * c);
-    return sum * 0.2;
+    var sum = centre.glossy;
+    sum += cluster_lobes(m, f, wi, g.s * s + g.n * c).glossy;
+    sum += cluster_lobes(m, f, wi, g.s * (-s) + g.n * c).glossy;
+    sum += cluster_lobes(m, f, wi, g.t * s + g.n * c).glossy;
+    sum += cluster_lobes(m, f, wi, g.t * (-s) + g.n * c).glossy;
+    return sum * 0.2 + centre.diffuse;
 }
 
 fn vkey(e: u32) -> vec2<u32> {

@@ -78,11 +78,12 @@ pub(crate) struct PlasticFragment<'a> {
 }
 
 /// The two sums of the GGX plastic of `Material::eval` without their fragment-constant
-/// factors, over the same clusters and five-point rules as [`ggx`]: the specular
+/// factors, over the same clusters as [`ggx`]: the specular
 /// `sum_k power_k (b . vis_k) F(v . h) G1(w) / s^2` ([`ggx_term`] times the Fresnel
-/// reflectance of the coating, `microfacet::fresnel_dielectric`) and the diffuse
-/// `sum_k power_k (b . vis_k) max(0, n . w) t(n . w)` (the table's linear interpolation,
-/// `PlasticTables::transmittance`).
+/// reflectance of the coating, `microfacet::fresnel_dielectric`, [`fresnel_ratio`]) over the
+/// same five-point rules, and the diffuse `sum_k power_k (b . vis_k) max(0, n . w) t(n . w)`
+/// (the table's linear interpolation, `PlasticTables::transmittance`) at each cluster's
+/// direction `mu_k` alone (`LightCut::spread_lobes`).
 pub(crate) fn plastic(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
@@ -104,38 +105,48 @@ fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
 fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
     let n = gf.n;
-    let inv_eta2 = 1.0 / (eta * eta);
-    // Two passes of one output each (the loop with two outputs did not vectorise).
+    debug_assert!(
+        eta > 1.0,
+        "a plastic's coating has ior > 1 (Material::validate)"
+    );
+    let e1 = eta * eta - 1.0;
     let [spec] = spread_sums(g, gf.b, |x, y, z| {
         let g = ggx_ratio(gf, x, y, z);
-        let hh = g.hh;
-        // Fresnel at cos_i = v . h / |h| (>= 0 for a reflection), eta > 0. For unit `v`
-        // and `w`, `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i = |h| / 2` and
-        // `cos_i^2 = |h|^2 / 4`: one square root, no division.
-        let ci = 0.5 * hh.sqrt();
-        let sin2_t = (1.0 - 0.25 * hh).max(0.0) * inv_eta2;
-        let ct = (1.0 - sin2_t).max(0.0).sqrt();
-        // `(rs^2 + rp^2) / 2` as `num / den`: `rs = a / b`, `rp = c / d`; 1 under total
-        // internal reflection.
-        let (a, b) = (ci - eta * ct, ci + eta * ct);
-        let (c, d) = (eta * ci - ct, eta * ci + ct);
-        let (bd, ad, cb) = (b * d, a * d, c * b);
-        let tir = sin2_t >= 1.0;
-        let num = if tir { 1.0 } else { 0.5 * (ad * ad + cb * cb) };
-        let den = if tir { 1.0 } else { bd * bd };
+        // The coating's Fresnel reflectance at `cos_i = v . h / |h|`: for unit `v` and `w`,
+        // `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i^2 = |h|^2 / 4`.
+        let [num, den] = fresnel_ratio(0.25 * g.hh, e1);
         // The GGX term and the reflectance over one division ([`ggx_ratio`]).
         let y = g.num * num / (g.den * den);
         [if g.lit { y } else { 0.0 }]
     });
-    // `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the table's lookup, a gather).
+    // The diffuse lobe at each cluster's direction alone, spread or not
+    // (`LightCut::spread_lobes`): `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the
+    // table's lookup, a gather).
     let t = f.transmittance;
-    let [diff] = spread_sums_post(
+    let diff = groups_sum_post(
         g,
         gf.b,
-        |x, y, z| [n.x * x + n.y * y + n.z * z],
+        |x, y, z| n.x * x + n.y * y + n.z * z,
         |co| cos_transmittance::<GATHER>(t, co),
     );
     [spec, diff]
+}
+
+/// The unpolarised Fresnel reflectance of a dielectric, `microfacet::fresnel_dielectric`,
+/// at `c = cos_i >= 0` from outside (`eta > 1`, no total internal reflection) as `[num, den]`
+/// with one square root and no division (the caller shares its division), from `c^2` and
+/// `e1 = eta^2 - 1`. With `g = eta cos_t = sqrt(eta^2 - 1 + c^2)`, `rs = (c - g) / (c + g)`
+/// and `(g - c)(g + c) = eta^2 - 1` give `rs^2 = e1^2 / Q^2`, `Q = (g + c)^2 = e1 + 2 c^2 +
+/// 2 g c` (a sum of non-negative terms: no cancellation), and `rp^2 = rs^2 X^2` with
+/// `X = (g c + c^2 - 1) / (g c - c^2 + 1)` (Cook and Torrance 1982's form), so
+/// `F = e1^2 (N^2 + D^2) / (2 Q^2 D^2)`, `D = g c - c^2 + 1 >= 1 - c^2 + g c > 0`; only
+/// `g c = sqrt(c^2 (e1 + c^2))` needs a root.
+#[inline(always)]
+fn fresnel_ratio(c2: f32, e1: f32) -> [f32; 2] {
+    let gc = (c2 * (e1 + c2)).sqrt();
+    let q = e1 + 2.0 * (c2 + gc);
+    let (nn, dd) = (gc + c2 - 1.0, gc - c2 + 1.0);
+    [e1 * e1 * (nn * nn + dd * dd), 2.0 * (q * q) * (dd * dd)]
 }
 
 /// `max(0, c) t(c)` for each cosine `c` of `co`, `t(c)` the linear interpolation of the
@@ -262,21 +273,6 @@ fn spread_sums<const K: usize>(
     }
 }
 
-/// [`spread_sums`] with `post` applied to the term's values of one direction over the
-/// lanes, between evaluation and sum ([`groups_sum_post`]).
-#[inline(always)]
-fn spread_sums_post<const K: usize>(
-    g: &Groups<'_>,
-    b: [f32; 3],
-    term: impl Fn(f32, f32, f32) -> [f32; K],
-    post: impl Fn(&mut [f32; LANES]),
-) -> [Vec3; K] {
-    match g.ring_cos {
-        None => groups_sum_post::<false, K>(g, &[], b, term, post),
-        Some(c) => groups_sum_post::<true, K>(g, c, b, term, post),
-    }
-}
-
 /// The four directions of the five-point rule around unit `mu = (mx, my, mz)` at
 /// `cos theta_p = c` ([`relight_bake::cuts::light_cut::LightCut::spread_average`]):
 /// `relight_sphere::warp::Frame::from_normal(mu)` (branch-free), then
@@ -376,65 +372,35 @@ fn groups_sum<const SPREAD: bool, const K: usize>(
     acc.map(|a| Vec3::from_array(a.map(|a| a.iter().sum())))
 }
 
-/// [`groups_sum`] with `post` applied to each direction's lanes of the term between
-/// evaluation and sum.
+/// `sum_k power_k (b . vis_k) post(term)_k` with `term` (one output) at each cluster's
+/// direction alone and `post` applied to its lanes between evaluation and sum: two loops over
+/// the lanes per group, so that a `post` the vectoriser cannot handle itself (the plastic's
+/// table lookup, gathered explicitly) stays out of the first.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn groups_sum_post<const SPREAD: bool, const K: usize>(
+fn groups_sum_post(
     g: &Groups<'_>,
-    ring_cos: &[[f32; LANES]],
     b: [f32; 3],
-    term: impl Fn(f32, f32, f32) -> [f32; K],
+    term: impl Fn(f32, f32, f32) -> f32,
     post: impl Fn(&mut [f32; LANES]),
-) -> [Vec3; K] {
-    // Two loops over the lanes per group: the term at the rule's directions, then `post` on
-    // each direction's lanes and the weighted sums. A `post` the vectoriser cannot handle
-    // itself (the plastic's table lookup, gathered explicitly) stays out of the first loop.
-    const D: usize = 5;
+) -> Vec3 {
     let groups = g.dir[0].len();
-    let mut acc = [[[0.0f32; LANES]; 3]; K];
+    let mut acc = [[[0.0f32; LANES]; 3]; 1];
     for i in 0..groups {
         let (dx, dy, dz) = (&g.dir[0][i], &g.dir[1][i], &g.dir[2][i]);
         let (v0, v1, v2) = (&g.vis[0][i], &g.vis[1][i], &g.vis[2][i]);
-        let rc = if SPREAD { &ring_cos[i] } else { &[1.0; LANES] };
-        // The term at `mu` and, with the spread, at the four directions of its rule.
-        let mut y = [[[0.0f32; LANES]; K]; D];
+        let mut y = [0.0f32; LANES];
         for l in 0..LANES {
-            let (mx, my, mz) = (dx[l], dy[l], dz[l]);
-            let t = term(mx, my, mz);
-            for k in 0..K {
-                y[0][k][l] = t[k];
-            }
-            if SPREAD {
-                let c = rc[l];
-                let r = ring_terms(&term, mx, my, mz, c);
-                for (d, t) in r.iter().enumerate() {
-                    for k in 0..K {
-                        y[d + 1][k][l] = t[k];
-                    }
-                }
-            }
+            y[l] = term(dx[l], dy[l], dz[l]);
         }
-        for y in &mut y[..if SPREAD { D } else { 1 }] {
-            y.iter_mut().for_each(&post);
-        }
-        // The rule's mean (one evaluation where it is off, `c == 1`: the ring is
-        // `mu` itself), times the interpolated visibility.
-        let mut x = [[0.0f32; LANES]; K];
+        post(&mut y);
+        let mut x = [[0.0f32; LANES]; 1];
         for l in 0..LANES {
-            let vis = b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l];
-            for k in 0..K {
-                let mut f = y[0][k][l];
-                if SPREAD {
-                    let ring = y[1][k][l] + y[2][k][l] + y[3][k][l] + y[4][k][l];
-                    f = if rc[l] < 1.0 { (f + ring) * 0.2 } else { f };
-                }
-                x[k][l] = vis * f;
-            }
+            x[0][l] = (b[0] * v0[l] + b[1] * v1[l] + b[2] * v2[l]) * y[l];
         }
         add_group(&mut acc, g, i, &x);
     }
-    acc.map(|a| Vec3::from_array(a.map(|a| a.iter().sum())))
+    Vec3::from_array(acc[0].map(|a| a.iter().sum()))
 }
 
 /// One triangle's merged clusters of the local-light bounce (`crate::shade_local`): each a
@@ -535,6 +501,24 @@ mod tests {
             }
         });
         (power, vis, dir, ring)
+    }
+
+    /// [`fresnel_ratio`] is `microfacet::fresnel_dielectric` up to f32 rounding, from normal
+    /// to grazing incidence and over the coating indices `Material::validate` takes.
+    #[test]
+    fn one_root_fresnel_is_fresnel_dielectric() {
+        use relight_scene::material::microfacet::fresnel_dielectric;
+        for eta in [1.01f32, 1.1, 1.33, 1.5, 2.0, 2.5, 4.0] {
+            for i in 0..=1000 {
+                let c = i as f32 / 1000.0;
+                let [num, den] = fresnel_ratio(c * c, eta * eta - 1.0);
+                let (fast, slow) = (num / den, fresnel_dielectric(c, eta));
+                assert!(
+                    (fast - slow).abs() <= 2e-6 + 1e-5 * slow,
+                    "eta {eta}, cos {c}: {fast} against {slow}"
+                );
+            }
+        }
     }
 
     /// The AVX2 build gives the portable build's bits (Rust fuses no multiply-add itself).

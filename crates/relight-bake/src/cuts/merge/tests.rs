@@ -293,7 +293,9 @@ fn shade_matches_slow_reference_and_converges_to_exact() {
     for (sigma, budget) in [(1.0f32, 256usize), (2.0, 128), (0.0, 1_000_000)] {
         let vc = vertex_cuts(&t, &fs, sigma);
         let lc = LightCut::build(&t, &power, sigma, budget).unwrap();
-        let fast = shade(&lc, [vc.cut(0), vc.cut(1), vc.cut(2)], bary, false, brdf);
+        let fast = shade(&lc, [vc.cut(0), vc.cut(1), vc.cut(2)], bary, false, |w| {
+            [brdf(w), Vec3::ZERO]
+        });
         // Slow: every leaf takes each cut's containing node's mean and the BRDF at the
         // deepest of those nodes.
         let find = |index: &[u32], rank: u32| {
