@@ -73,8 +73,9 @@ pub struct CutsFrameSettings {
     /// `..`, symbolic links out of it).
     #[cfg_attr(feature = "cli", arg(long))]
     pub material_allow_outside_paths: bool,
-    /// Average each glossy BRDF over the spread of every merged cluster's lights (five
-    /// evaluations per wide cluster; the default) instead of evaluating it at the cluster's
+    /// Average each BRDF's glossy lobe over the spread of every merged cluster's lights (five
+    /// evaluations per wide cluster; the default; diffuse lobes stay at the cluster's
+    /// direction, `LightCut::spread_lobes`) instead of evaluating it at the cluster's
     /// direction alone (`--cluster-spread false`: faster; measured farther from the
     /// reference on the bunny, teapot and dragon, docs/RESULTS.md §11).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = true, action = clap::ArgAction::Set, num_args = 0..=1, default_missing_value = "true"))]
