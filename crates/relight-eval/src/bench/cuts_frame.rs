@@ -142,7 +142,7 @@ pub(super) fn section(
                     .max()
                     .map_or(1, |&m| m as usize + 1)
             ];
-            // The frame's default (glossy BRDFs averaged over each cluster's spread).
+            // The frame's default (glossy lobes averaged over each cluster's spread).
             let spread = relight_method::cuts::CutsFrameSettings::default().cluster_spread;
             let shader = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
                 .with_cluster_spread(spread);
