@@ -67,11 +67,12 @@
 //! let power = sample_power(&bake.samples, &env)?;
 //! let light = LightCut::build(&bake.tree, &power, 2.0, 256)?;
 //! // A white Lambertian corner (the cuts hold binary visibility, the default; the BRDF
-//! // times the cosine, evaluated at each merged cluster's direction, is 1 / pi n . w):
+//! // times the cosine, evaluated at each merged cluster's direction, is 1 / pi n . w, all
+//! // of it a diffuse lobe: `[glossy, diffuse]`):
 //! // int V cos / pi, 1 without the sphere, which hides about 5% of the cosine-weighted sky.
 //! let c = bake.cuts.cut(0);
 //! let b = shade(&light, [c, c, c], [1.0, 0.0, 0.0], false, |w: Vec3| {
-//!     Vec3::splat(w.y.max(0.0) * std::f32::consts::FRAC_1_PI)
+//!     [Vec3::ZERO, Vec3::splat(w.y.max(0.0) * std::f32::consts::FRAC_1_PI)]
 //! });
 //! assert!(b.x > 0.9 && b.x < 0.99, "{b}");
 //! # Ok(()) }
