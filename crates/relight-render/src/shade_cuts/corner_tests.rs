@@ -4,10 +4,12 @@
 
 use super::ward_tests::{bias, sky};
 use super::*;
+use crate::Image;
 use relight_bake::cuts::light_cut::LightCut;
 use relight_bake::cuts::samples::sample_power;
 use relight_bake::cuts::{bake_range, CutsBake, CutsBakeSettings};
 use relight_scene::accel::{build, Backend, RayCaster};
+use relight_scene::mesh::TriMesh;
 use relight_scene::scene::Scene;
 use relight_scene::shapes::{ground_plane, uv_sphere};
 use relight_sphere::EnvMap;
@@ -93,6 +95,31 @@ fn corner_lists_follow_the_light_cut() {
     assert_ne!(first.image.pixels, second.image.pixels);
 }
 
+/// The path tracer's direct-light image of `mesh` with `materials` under `env` from
+/// [`camera`], and its per-pixel variance (the references of the tests below).
+fn path_traced(
+    mesh: &TriMesh,
+    caster: &dyn RayCaster,
+    materials: &[Material],
+    env: &Environment,
+    spp: u32,
+) -> (Image, Image) {
+    let scene = Scene {
+        maps: Default::default(),
+        mesh: mesh.clone(),
+        materials: materials.to_vec(),
+        env: env.clone(),
+        camera: camera(),
+    };
+    let pts = crate::pathtrace::PtSettings {
+        spp,
+        max_depth: 2,
+        seed: 11,
+        ..Default::default()
+    };
+    crate::pathtrace::render_with_variance(&scene, caster, &pts)
+}
+
 /// Over binary visibility cuts the corner frame samples each corner's cosine at that
 /// corner's clusters instead of the triangle's merged ones: against the path tracer (direct
 /// light, its noise removed by `bias`) the default frame is no further than the per-triangle
@@ -130,20 +157,7 @@ fn corner_frame_matches_the_path_tracer_as_the_triangle_merge_does() {
     let opts = RasterOptions { supersample: 2 };
     for sphere in spheres {
         let materials = vec![plane, sphere];
-        let scene = Scene {
-            maps: Default::default(),
-            mesh: mesh.clone(),
-            materials: materials.clone(),
-            env: env.clone(),
-            camera: camera(),
-        };
-        let pts = crate::pathtrace::PtSettings {
-            spp: 256,
-            max_depth: 2,
-            seed: 11,
-            ..Default::default()
-        };
-        let (pt, var) = crate::pathtrace::render_with_variance(&scene, caster.as_ref(), &pts);
+        let (pt, var) = path_traced(&mesh, caster.as_ref(), &materials, &env, 256);
         let shader = CutsShader::new(&mesh, materials, &bake, CutFunction::Visibility);
         for budget in [16, 64, 256] {
             let light = LightCut::build(&bake.tree, &power, 2.0, budget).unwrap();
@@ -203,20 +217,7 @@ fn spreading_the_glossy_lobe_alone_is_never_further_from_the_path_tracer() {
         (plastic(Vec3::splat(0.8), 0.3), false),
     ] {
         let materials = vec![plane, sphere];
-        let scene = Scene {
-            maps: Default::default(),
-            mesh: mesh.clone(),
-            materials: materials.clone(),
-            env: env.clone(),
-            camera: camera(),
-        };
-        let pts = crate::pathtrace::PtSettings {
-            spp: 1024,
-            max_depth: 2,
-            seed: 11,
-            ..Default::default()
-        };
-        let (pt, var) = crate::pathtrace::render_with_variance(&scene, caster.as_ref(), &pts);
+        let (pt, var) = path_traced(&mesh, caster.as_ref(), &materials, &env, 1024);
         let shader = |spread| {
             CutsShader::new(&mesh, materials.clone(), &bake, CutFunction::Visibility)
                 .with_cluster_spread(spread)
