@@ -171,13 +171,14 @@ fn transmittance(base: u32, x: f32) -> f32 {
 }
 
 // Material::eval (the BSDF times max(0, cos theta_o)) in the shading frame, as its glossy and
-// diffuse lobes (MaterialEval::lobes), whose sum it is.
+// diffuse lobes (MaterialEval::lobes), whose sum it is; the diffuse lobe left at zero unless
+// `diffuse` (the five-point rule's ring needs the glossy lobe only).
 struct Lobes {
     glossy: vec3<f32>,
     diffuse: vec3<f32>,
 }
 
-fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> Lobes {
+fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>, diffuse: bool) -> Lobes {
     if (wi.z <= 0.0 || wo.z <= 0.0) {
         return Lobes(vec3<f32>(0.0), vec3<f32>(0.0));
     }
@@ -193,6 +194,9 @@ fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> Lobes {
     }
     // The plastic: the coating's specular term and the diffuse base seen through it.
     let spec = m.color.xyz * (fresnel_dielectric(dot(wi, h), m.ior) * dg);
+    if (!diffuse) {
+        return Lobes(spec, vec3<f32>(0.0));
+    }
     let ti = transmittance(m.table, wi.z);
     let to = transmittance(m.table, wo.z);
     let diff = m.diffuse.xyz / (1.0 - m.internal_reflectance)
@@ -201,15 +205,15 @@ fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>) -> Lobes {
 }
 
 // shade_cuts::cluster_lobes: the BRDF's lobes towards world direction w.
-fn cluster_lobes(m: CutsMaterial, f: Frame, wi: vec3<f32>, w: vec3<f32>) -> Lobes {
+fn cluster_lobes(m: CutsMaterial, f: Frame, wi: vec3<f32>, w: vec3<f32>, diffuse: bool) -> Lobes {
     var wo = to_local(f, w);
     if (params.cosine_in_cuts == 0u) {
-        return eval_lobes(m, wi, wo);
+        return eval_lobes(m, wi, wo, diffuse);
     }
     if (wo.z < HORIZON) {
         wo = normalize(vec3<f32>(wo.x, wo.y, HORIZON));
     }
-    let l = eval_lobes(m, wi, wo);
+    let l = eval_lobes(m, wi, wo, diffuse);
     return Lobes(l.glossy / wo.z, l.diffuse / wo.z);
 }
 
@@ -219,17 +223,17 @@ fn cluster_f(m: CutsMaterial, f: Frame, wi: vec3<f32>, node: u32) -> vec3<f32> {
     let d = dirs[node];
     let mu = d.xyz;
     let c = d.w;
-    let centre = cluster_lobes(m, f, wi, mu);
+    let centre = cluster_lobes(m, f, wi, mu, true);
     if (m.spread == 0u || c >= 1.0) {
         return centre.glossy + centre.diffuse;
     }
     let s = sqrt(max(1.0 - c * c, 0.0));
     let g = frame_from_normal(mu);
     var sum = centre.glossy;
-    sum += cluster_lobes(m, f, wi, g.s * s + g.n * c).glossy;
-    sum += cluster_lobes(m, f, wi, g.s * (-s) + g.n * c).glossy;
-    sum += cluster_lobes(m, f, wi, g.t * s + g.n * c).glossy;
-    sum += cluster_lobes(m, f, wi, g.t * (-s) + g.n * c).glossy;
+    sum += cluster_lobes(m, f, wi, g.s * s + g.n * c, false).glossy;
+    sum += cluster_lobes(m, f, wi, g.s * (-s) + g.n * c, false).glossy;
+    sum += cluster_lobes(m, f, wi, g.t * s + g.n * c, false).glossy;
+    sum += cluster_lobes(m, f, wi, g.t * (-s) + g.n * c, false).glossy;
     return sum * 0.2 + centre.diffuse;
 }
 
