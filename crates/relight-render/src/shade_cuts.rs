@@ -36,10 +36,11 @@ mod triangle;
 
 use crate::mapped::MappedMaterials;
 use crate::raster::{self, Fragment, RasterOptions, Rendered};
-use cache::MergedCache;
 pub use cache::DEFAULT_BUDGET as DEFAULT_MERGE_CACHE_BYTES;
+use cache::{LightTables, MergedCache};
 use corners::CornerLists;
 use glam::Vec3;
+use relight_bake::cuts::cut::CutRef;
 use relight_bake::cuts::light_cut::LightCut;
 use relight_bake::cuts::merge::shade;
 use relight_bake::cuts::visibility::CutFunction;
@@ -66,11 +67,12 @@ pub struct CutsShader<'a> {
     function: CutFunction,
     /// Average glossy BRDFs over each cluster's spread ([`CutsShader::with_cluster_spread`]).
     spread: bool,
-    /// The corner lists and merged cuts of the last light cut rendered
+    /// The corner lists and light-cut tables of the last light cut rendered
     /// ([`CutsShader::prepare`]).
     lit: Mutex<Option<Arc<Lit>>>,
-    /// Bytes of merged cuts kept across frames ([`CutsShader::with_merge_cache`]).
-    cache_budget: usize,
+    /// The triangles' visibility unions, kept across frames and light cuts
+    /// ([`CutsShader::with_merge_cache`]; `None` when off).
+    merged: Option<MergedCache>,
     /// Whether a material is Lambert (shaded from the corner lists).
     has_lambert: bool,
 }
@@ -103,7 +105,7 @@ impl<'a> CutsShader<'a> {
             function,
             spread: false,
             lit: Mutex::new(None),
-            cache_budget: cache::DEFAULT_BUDGET,
+            merged: MergedCache::new(mesh, cache::DEFAULT_BUDGET),
         }
     }
 
@@ -117,11 +119,11 @@ impl<'a> CutsShader<'a> {
         self
     }
 
-    /// Keep at most `bytes` of triangles' merged cuts across the frames of one light cut
+    /// Keep at most `bytes` of triangles' visibility unions across frames and light cuts
     /// (default [`DEFAULT_MERGE_CACHE_BYTES`]; 0: none, every frame merges every visible
     /// triangle). Module docs of `shade_cuts::cache`: the frames are the same bits either way.
     pub fn with_merge_cache(mut self, bytes: usize) -> Self {
-        self.cache_budget = bytes;
+        self.merged = MergedCache::new(self.mesh, bytes);
         self
     }
 
@@ -146,6 +148,12 @@ impl<'a> CutsShader<'a> {
         self.materials.at(self.mesh, f, owned)
     }
 
+    /// The visibility cuts of triangle `tri`'s three corners.
+    #[inline]
+    fn vertex_cuts(&self, tri: u32) -> [CutRef<'_>; 3] {
+        self.mesh.indices[tri as usize].map(|v| self.bake.cuts.cut(v as usize))
+    }
+
     /// Whether `material` is shaded with the cluster spread.
     #[inline]
     fn spreads(&self, material: &MaterialEval) -> bool {
@@ -164,8 +172,7 @@ impl<'a> CutsShader<'a> {
         if wi.z <= 0.0 {
             return Vec3::ZERO; // one-sided materials, as the path tracer's
         }
-        let [a, b, c] = self.mesh.indices[f.tri as usize];
-        let cuts = [a, b, c].map(|v| self.bake.cuts.cut(v as usize));
+        let cuts = self.vertex_cuts(f.tri);
         shade(light, cuts, f.bary, self.spreads(material), |w| {
             self.lobes(material, wi, frame.to_local(w))
         })
@@ -198,8 +205,8 @@ impl<'a> CutsShader<'a> {
 
     /// [`CutsShader::render`] stopped after `stage` (the time split of `relight bench`):
     /// the fragments are black before [`CutsStage::Full`]. If `light` is not the cached one,
-    /// the corner lists are built first and the kept merged cuts dropped
-    /// ([`CutsShader::prepare`]).
+    /// the corner lists and the light cut's tables are built first ([`CutsShader::prepare`];
+    /// the triangles' visibility unions are kept).
     ///
     /// # Panics
     /// As [`CutsShader::render`].
@@ -212,7 +219,8 @@ impl<'a> CutsShader<'a> {
         stage: CutsStage,
     ) -> Rendered {
         let lit = self.prepared(light);
-        if let (Some(m), CutsStage::Full) = (&lit.merged, stage) {
+        let merged = self.merged.as_ref().zip(lit.tables.as_ref());
+        if let (Some((m, _)), CutsStage::Full) = (merged, stage) {
             m.begin_frame();
         }
         let eye = Vec3::from_array(camera.origin);
@@ -224,12 +232,13 @@ impl<'a> CutsShader<'a> {
                 .materials
                 .of_triangle(self.mesh, tri as usize)
                 .material();
-            match (&lit.lists, &lit.merged) {
+            match (&lit.lists, merged) {
                 (Some(lists), _) if matches!(constant, Material::Lambert { .. }) => {
                     self.shade_corners(light, lists, tri, fs, eye, out)
                 }
-                (_, Some(merged)) => TRIANGLE_CUT.with_borrow_mut(|t| {
-                    merged.fill(t, self, light, tri, self.glossy_spread(constant));
+                (_, Some((merged, tables))) => TRIANGLE_CUT.with_borrow_mut(|t| {
+                    let spread = self.glossy_spread(constant);
+                    merged.fill(t, self, (light, tables), tri, spread);
                     self.shade_triangle(light, t, tri, fs, eye, out);
                 }),
                 _ => self.merge_and_shade(light, constant, tri, fs, eye, out),
@@ -240,8 +249,8 @@ impl<'a> CutsShader<'a> {
     /// Prepare the frames of `light` now (what [`CutsShader::render`] does on its first
     /// frame under a new light cut: once per environment and rotation, independent of the
     /// camera and the materials): with a Lambert material, merge every vertex's cut with
-    /// `light` (the traversal of sec. 3.2 over two cuts) and keep the lists; start an empty
-    /// cache of merged triangle cuts (`shade_cuts::cache`). Returns the corner lists'
+    /// `light` (the traversal of sec. 3.2 over two cuts) and keep the lists; build the light
+    /// cut's tables for the kept visibility unions of the triangles (`shade_cuts::cache`). Returns the corner lists'
     /// figures, `None` (no lists) when no material is Lambert.
     pub fn prepare(&self, light: &LightCut) -> Option<CornerStats> {
         let lit = self.prepared(light);
@@ -251,13 +260,9 @@ impl<'a> CutsShader<'a> {
         })
     }
 
-    /// Bytes of merged triangle cuts kept for the last light cut rendered
-    /// ([`CutsShader::with_merge_cache`]).
+    /// Bytes of the triangles' visibility unions kept ([`CutsShader::with_merge_cache`]).
     pub fn merge_cache_bytes(&self) -> usize {
-        let lit = self.lit.lock().unwrap_or_else(|e| e.into_inner());
-        lit.as_ref()
-            .and_then(|l| l.merged.as_ref())
-            .map_or(0, |m| m.bytes())
+        self.merged.as_ref().map_or(0, |m| m.bytes())
     }
 
     /// What the frames of `light` keep, built if the cache holds another light cut (or
@@ -277,7 +282,11 @@ impl<'a> CutsShader<'a> {
                     lists: self
                         .has_lambert
                         .then(|| CornerLists::build(&self.bake.cuts, light, reuse)),
-                    merged: MergedCache::new(self, light, self.cache_budget),
+                    tables: self
+                        .merged
+                        .is_some()
+                        .then(|| LightTables::new(&self.bake.tree, light))
+                        .flatten(),
                     light: light.clone(),
                 });
                 *cache = Some(lit.clone());
@@ -329,7 +338,7 @@ impl<'a> CutsShader<'a> {
         out: &mut [Vec3],
     ) {
         TRIANGLE_CUT.with_borrow_mut(|t| {
-            t.build(self, light, tri, self.glossy_spread(constant), None);
+            t.build(self, light, tri, self.glossy_spread(constant));
             self.shade_triangle(light, t, tri, fs, eye, out);
         })
     }
@@ -505,11 +514,12 @@ pub struct CornerStats {
 }
 
 /// What the frames of one light cut keep: the corner lists (with a Lambert material) and the
-/// merged triangle cuts (unless the cache is off), with the light cut they were built for.
+/// tables for the triangles' visibility unions (unless the cache is off), with the light cut
+/// they were built for.
 struct Lit {
     light: LightCut,
     lists: Option<CornerLists>,
-    merged: Option<MergedCache>,
+    tables: Option<LightTables>,
 }
 
 #[cfg(test)]

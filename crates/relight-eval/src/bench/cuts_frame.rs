@@ -13,9 +13,11 @@
 //! group fragments by triangle) and the shading of every fragment (Lambert: its three
 //! corners' lists summed; glossy: its triangle's merged cut, kept across frames,
 //! `relight_render::shade_cuts` module `cache`). The frame is timed with the camera orbiting
-//! by [`ORBIT_DEG`] per frame (each frame merges the triangles that came into view), and
-//! again with nothing kept ("all merged": every visible triangle merged, the first frame
-//! after a change of light cut). Measured in the same run: the previous default, the per-triangle merge
+//! by [`ORBIT_DEG`] per frame (each frame merges the triangles that came into view), then
+//! with the environment also turning by [`ROTATE_DEG`] per frame (a new light cut every
+//! frame, its frame from the kept visibility unions; the light cut's cost in its own
+//! column), and again with nothing kept ("all merged": every visible triangle merged, as in
+//! the very first frame of a shader). Measured in the same run: the previous default, the per-triangle merge
 //! (`render_merged`: every visible triangle's three vertex cuts merged with the light cut
 //! once per triangle and band of rows), and the **baseline**, the per-fragment merge
 //! (`render_per_fragment`: the three cuts merged again at every fragment, the paper's
@@ -44,6 +46,10 @@ pub const TARGET_MS: f64 = 1e3 / 6.4;
 /// Degrees the bench's camera orbits per frame (32 degrees per second at 6.4 fps: a brisk
 /// turn of the model).
 pub const ORBIT_DEG: f32 = 5.0;
+
+/// Degrees the bench's environment turns per frame in the rotating run (every frame a new
+/// light cut).
+pub const ROTATE_DEG: f32 = 5.0;
 
 /// The section: bake, then per function, material and light cut the corner lists and the
 /// stages of the frame, against the per-triangle and the per-fragment merge.
@@ -94,7 +100,11 @@ pub(super) fn section(
             "shading (ms)",
             "frame (ms)",
             "frame CPU (ms)",
-            "kept merges (MiB)",
+            "kept unions (MiB)",
+            "frame, environment rotating (ms)",
+            "frame, environment rotating CPU (ms)",
+            "light power (ms)",
+            "new light cut (ms)",
             "frame, all merged (ms)",
             "frame, all merged CPU (ms)",
             "triangle merge frame (ms)",
@@ -148,7 +158,7 @@ pub(super) fn section(
                 .with_cluster_spread(spread);
             // Nothing kept: every visible triangle merged at every frame, as in the first
             // frame after a change of light cut (a new environment or rotation).
-            let uncached = CutsShader::new(&mesh, shader_materials, &bake, function)
+            let uncached = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
                 .with_cluster_spread(spread)
                 .with_merge_cache(0);
             let budgets: &[usize] = if quick { &[256] } else { &LIGHT_CUT_BUDGETS };
@@ -190,6 +200,32 @@ pub(super) fn section(
                 }
                 let (frame, frame_cpu) = (median(ms), cpu / frames as f64);
                 let kept = shader.merge_cache_bytes();
+                // The same orbit with the environment also turning by ROTATE_DEG per frame, on
+                // a fresh shader (the same triangles come into view): a new light cut at
+                // every frame (the light samples' power and the cut, each timed apart), its frame
+                // from the kept visibility unions.
+                let turning = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
+                    .with_cluster_spread(spread);
+                turning.render(&light, &camera, None, &opts);
+                let (mut ms, mut cpu, mut power_ms, mut cut_ms) = (vec![], 0.0, vec![], vec![]);
+                for i in 1..=frames {
+                    let t0 = Instant::now();
+                    let mut turned = env.clone();
+                    turned.rotate_y_deg += ROTATE_DEG * i as f32;
+                    let power = sample_power(&bake.samples, &turned).map_err(bad)?;
+                    power_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                    let t0 = Instant::now();
+                    let light_i = LightCut::build(&bake.tree, &power, DEFAULT_LIGHT_SIGMA, budget)
+                        .map_err(bad)?;
+                    cut_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                    let cam = camera_at(ORBIT_DEG * i as f32);
+                    let (c0, t0) = (process_cpu_ms(), Instant::now());
+                    std::hint::black_box(turning.render(&light_i, &cam, None, &opts));
+                    ms.push(t0.elapsed().as_secs_f64() * 1e3);
+                    cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
+                }
+                let (rotating, rotating_cpu) = (median(ms), cpu / frames as f64);
+                let (light_power, new_cut) = (median(power_ms), median(cut_ms));
                 uncached.prepare(&light);
                 let (all_merged, all_merged_cpu) =
                     time(&|| uncached.render(&light, &camera, None, &opts));
@@ -215,6 +251,10 @@ pub(super) fn section(
                     json!(frame),
                     json!(frame_cpu),
                     json!(kept as f64 / (1 << 20) as f64),
+                    json!(rotating),
+                    json!(rotating_cpu),
+                    json!(light_power),
+                    json!(new_cut),
                     json!(all_merged),
                     json!(all_merged_cpu),
                     json!(merged),

@@ -2,7 +2,7 @@
 //! the per-triangle frame [`super::CutsShader::render_merged`], the merge of the three vertex
 //! cuts with the light cut done once per triangle and band of rows and summed per fragment.
 
-use super::cache::{Cluster, MergedCache};
+use super::cache::{Cluster, LightTables, NodeInfo};
 use super::corners::LANES;
 use super::lanes;
 use super::CutsShader;
@@ -56,25 +56,19 @@ impl TriangleCut {
 
     /// Merge triangle `tri`'s cuts with `light` into `self` (its arrays reused: they only
     /// grow, and are written by index; a merged cut is at most as long as its four cuts
-    /// together), for the cluster spread if `spread`; each kept cluster also pushed onto
-    /// `record` if given (`shade_cuts::cache`; the light cut then has at most 65,536 nodes).
+    /// together), for the cluster spread if `spread`.
     pub(super) fn build(
         &mut self,
         shader: &CutsShader<'_>,
         light: &LightCut,
         tri: u32,
         spread: bool,
-        mut record: Option<&mut Vec<Cluster>>,
     ) {
-        self.sums = [Vec3::ZERO; 3];
-        self.spread = spread;
-        let [a, b, c] = shader.mesh.indices[tri as usize];
-        let cuts = [
-            shader.bake.cuts.cut(a as usize),
-            shader.bake.cuts.cut(b as usize),
-            shader.bake.cuts.cut(c as usize),
-        ];
-        self.reserve(light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>());
+        let cuts = shader.vertex_cuts(tri);
+        self.begin(
+            spread,
+            light.len() + cuts.iter().map(|c| c.index.len()).sum::<usize>(),
+        );
         let keys = [
             CutKeys::from(light),
             cuts[0].into(),
@@ -93,61 +87,116 @@ impl TriangleCut {
             if q == [0; 3] || power == Vec3::ZERO {
                 return;
             }
-            if let Some(r) = record.as_deref_mut() {
-                debug_assert!(pos[0] <= u16::MAX as usize);
-                r.push(Cluster {
-                    node: node.index,
-                    light: pos[0] as u16,
-                    vis: q,
-                });
-            }
-            let dir = light.direction(node.index);
-            self.node[n] = node.index;
-            self.ring_cos[n] = if spread {
-                light.rule_cos(node.index)
-            } else {
-                1.0
+            let info = NodeInfo {
+                dir: light.direction(node.index).to_array(),
+                ring_cos: if spread {
+                    light.rule_cos(node.index)
+                } else {
+                    1.0
+                },
             };
-            for j in 0..3 {
-                let v = dequantise(q[j]);
-                sums[j] += power * v;
-                self.vis[j][n] = v;
-                self.power[j][n] = power[j];
-                self.dir[j][n] = dir[j];
-            }
+            self.push(n, node.index, power, q, info, &mut sums);
             n += 1;
         });
         self.finish(n, sums);
     }
 
-    /// Triangle `tri`'s merged cut into `self` from its record `cut` (`shade_cuts::cache`,
-    /// whose tables `cache` holds) instead of the traversal: the same arithmetic in the same
-    /// order as [`TriangleCut::build`], so the same bits.
-    pub(super) fn expand(
+    /// Triangle `tri`'s visibility union into `record` (cleared first): the traversal of
+    /// sec. 3.2 over its three vertex cuts, the clusters no corner sees dropped
+    /// (`shade_cuts::cache`, step 1).
+    pub(super) fn union(shader: &CutsShader<'_>, tri: u32, record: &mut Vec<Cluster>) {
+        record.clear();
+        let cuts = shader.vertex_cuts(tri);
+        merge_cuts(cuts.map(CutKeys::from), |node, pos| {
+            let vis = [
+                cuts[0].value[pos[0]],
+                cuts[1].value[pos[1]],
+                cuts[2].value[pos[2]],
+            ];
+            if vis != [0; 3] {
+                record.push(Cluster {
+                    node: node.index,
+                    leftleaf: node.leftleaf,
+                    vis,
+                });
+            }
+        });
+    }
+
+    /// A triangle's merged cut into `self` from its visibility union `union` and the light
+    /// cut `light` (its `tables`), by one pass instead of
+    /// the traversal (`shade_cuts::cache`, step 2): the clusters of [`TriangleCut::build`] in
+    /// its order and arithmetic, so the same bits.
+    pub(super) fn walk(
         &mut self,
         light: &LightCut,
-        cache: &MergedCache,
-        cut: &[Cluster],
+        tables: &LightTables,
+        union: &[Cluster],
         spread: bool,
     ) {
-        self.spread = spread;
-        self.reserve(cut.len());
+        // A merged cluster is a union cluster or a light-cut node inside one.
+        self.begin(spread, union.len() + light.len());
+        let mut n = 0;
         let mut sums = [Vec3::ZERO; 3];
-        for (n, c) in cut.iter().enumerate() {
-            let node = c.node as usize;
-            let info = cache.nodes[node];
-            let power = light.value[c.light as usize] * cache.leaves[node];
-            self.node[n] = c.node;
-            self.ring_cos[n] = if spread { info.ring_cos } else { 1.0 };
-            for j in 0..3 {
-                let v = dequantise(c.vis[j]);
-                sums[j] += power * v;
-                self.vis[j][n] = v;
-                self.power[j][n] = power[j];
-                self.dir[j][n] = info.dir[j];
+        for c in union {
+            // The light-cut node holding the cluster's leftmost leaf (every cut partitions
+            // the leaves): the cluster itself or an ancestor (post-order index at least the
+            // cluster's: the merged cluster is the union's), else the first of the light-cut
+            // nodes inside the cluster (the merged clusters are those, up to its index).
+            let mut p = tables.cover[c.leftleaf as usize] as usize;
+            let covered = light.index[p] >= c.node;
+            loop {
+                let (node, leftleaf) = if covered {
+                    (c.node, c.leftleaf)
+                } else {
+                    (light.index[p], light.leftleaf[p])
+                };
+                // `|C'|` as `MergedNode::leaves` (exact in f32 below 2^24 lights).
+                let power = light.value[p] * ((node - leftleaf) / 2 + 1) as f32;
+                if power != Vec3::ZERO {
+                    let mut info = tables.nodes[node as usize];
+                    if !spread {
+                        info.ring_cos = 1.0;
+                    }
+                    self.push(n, node, power, c.vis, info, &mut sums);
+                    n += 1;
+                }
+                p += 1;
+                if covered || p == light.len() || light.index[p] > c.node {
+                    break;
+                }
             }
         }
-        self.finish(cut.len(), sums);
+        self.finish(n, sums);
+    }
+
+    /// Start a merged cut of at most `clusters` clusters, for the spread if `spread`.
+    fn begin(&mut self, spread: bool, clusters: usize) {
+        self.spread = spread;
+        self.reserve(clusters);
+    }
+
+    /// Write cluster `n`: tree node `node`, `power = |C'| <L O>`, quantised visibility
+    /// means `q`, direction and rule `info`; its share of the Lambert `sums`.
+    #[inline(always)]
+    fn push(
+        &mut self,
+        n: usize,
+        node: u32,
+        power: Vec3,
+        q: [u16; 3],
+        info: NodeInfo,
+        sums: &mut [Vec3; 3],
+    ) {
+        self.node[n] = node;
+        self.ring_cos[n] = info.ring_cos;
+        for j in 0..3 {
+            let v = dequantise(q[j]);
+            sums[j] += power * v;
+            self.vis[j][n] = v;
+            self.power[j][n] = power[j];
+            self.dir[j][n] = info.dir[j];
+        }
     }
 
     /// Room for `clusters` clusters (padding included).
@@ -170,6 +219,31 @@ impl TriangleCut {
             a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
         }
         self.ring_cos[n..self.len].fill(1.0);
+    }
+
+    /// Every field of every cluster, padding included, as bits (tests: two ways to the
+    /// same merged cut).
+    #[cfg(test)]
+    pub(super) fn bits(&self) -> (Vec<[u32; 11]>, [glam::Vec3; 3], bool) {
+        let clusters = (0..self.len)
+            .map(|k| {
+                let f = |a: &[Vec<f32>; 3], j: usize| a[j][k].to_bits();
+                [
+                    self.node[k],
+                    self.ring_cos[k].to_bits(),
+                    f(&self.power, 0),
+                    f(&self.power, 1),
+                    f(&self.power, 2),
+                    f(&self.vis, 0),
+                    f(&self.vis, 1),
+                    f(&self.vis, 2),
+                    f(&self.dir, 0),
+                    f(&self.dir, 1),
+                    f(&self.dir, 2),
+                ]
+            })
+            .collect();
+        (clusters, self.sums, self.spread)
     }
 
     /// Cluster `k`'s power, visibility interpolated with `b`, direction and tree node.
