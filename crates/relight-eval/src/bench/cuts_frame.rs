@@ -156,8 +156,8 @@ pub(super) fn section(
             let spread = relight_method::cuts::CutsFrameSettings::default().cluster_spread;
             let shader = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
                 .with_cluster_spread(spread);
-            // Nothing kept: every visible triangle merged at every frame, as in the first
-            // frame after a change of light cut (a new environment or rotation).
+            // Nothing kept: every visible triangle merged at every frame, as in a shader's
+            // very first frame.
             let uncached = CutsShader::new(&mesh, shader_materials.clone(), &bake, function)
                 .with_cluster_spread(spread)
                 .with_merge_cache(0);

@@ -42,8 +42,8 @@ use relight_scene::mesh::TriMesh;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering::Relaxed};
 use std::sync::Mutex;
 
-/// The default budget of the records, bytes (256 MiB: the bunny's 26K visible triangles at
-/// 512 x 512 take about 100 MiB).
+/// The default budget of the records, bytes (256 MiB: the unions of the bunny's triangles
+/// drawn over nine frames of an orbit at 512 x 512 take 110 MiB, docs/RESULTS.md §11).
 pub const DEFAULT_BUDGET: usize = 256 << 20;
 
 /// One cluster of a triangle's visibility union (module docs).
