@@ -189,7 +189,9 @@ impl<'a> CutsShader<'a> {
     ///   at each corner's own clusters, no further from the path tracer (tested,
     ///   docs/RESULTS.md §11);
     /// * other materials as [`CutsShader::render_merged`] (for glossy lobes the corners'
-    ///   coarser clusters measured further from the path tracer).
+    ///   coarser clusters measured further from the path tracer), each triangle's merged cut
+    ///   from its kept visibility union and the light cut's tables (`shade_cuts::cache`: the
+    ///   same bits; only triangles drawn for the first time are merged).
     ///
     /// # Panics
     /// If `opts.supersample == 0` or the camera's image is empty.
@@ -250,8 +252,8 @@ impl<'a> CutsShader<'a> {
     /// frame under a new light cut: once per environment and rotation, independent of the
     /// camera and the materials): with a Lambert material, merge every vertex's cut with
     /// `light` (the traversal of sec. 3.2 over two cuts) and keep the lists; build the light
-    /// cut's tables for the kept visibility unions of the triangles (`shade_cuts::cache`). Returns the corner lists'
-    /// figures, `None` (no lists) when no material is Lambert.
+    /// cut's tables for the kept visibility unions of the triangles (`shade_cuts::cache`).
+    /// Returns the corner lists' figures, `None` (no lists) when no material is Lambert.
     pub fn prepare(&self, light: &LightCut) -> Option<CornerStats> {
         let lit = self.prepared(light);
         lit.lists.as_ref().map(|lists| CornerStats {

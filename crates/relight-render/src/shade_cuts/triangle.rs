@@ -124,9 +124,9 @@ impl TriangleCut {
     }
 
     /// A triangle's merged cut into `self` from its visibility union `union` and the light
-    /// cut `light` (its `tables`), by one pass instead of
-    /// the traversal (`shade_cuts::cache`, step 2): the clusters of [`TriangleCut::build`] in
-    /// its order and arithmetic, so the same bits.
+    /// cut `light` (its `tables`), by one pass instead of the traversal (`shade_cuts::cache`,
+    /// step 2): the clusters of [`TriangleCut::build`] in its order and arithmetic, so the
+    /// same bits.
     pub(super) fn walk(
         &mut self,
         light: &LightCut,
