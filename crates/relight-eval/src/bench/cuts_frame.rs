@@ -31,7 +31,7 @@ use relight_bake::cuts::samples::sample_power;
 use relight_bake::cuts::visibility::CutFunction;
 use relight_bake::cuts::{bake_range, CutsBakeSettings};
 use relight_method::MethodError;
-use relight_render::raster::RasterOptions;
+use relight_render::raster::{RasterOptions, Rendered};
 use relight_render::shade_cuts::{CutsShader, CutsStage};
 use relight_scene::accel;
 use relight_scene::camera::Camera;
@@ -170,16 +170,12 @@ pub(super) fn section(
                 let t0 = Instant::now();
                 let lists = shader.prepare(&light);
                 let prepare = t0.elapsed().as_secs_f64() * 1e3;
-                let time = |render: &dyn Fn() -> relight_render::raster::Rendered| {
-                    let mut ms = vec![];
-                    let mut cpu = 0.0;
-                    for i in 0..=runs {
-                        let (c0, t0) = (process_cpu_ms(), Instant::now());
-                        std::hint::black_box(render());
-                        if i > 0 {
-                            ms.push(t0.elapsed().as_secs_f64() * 1e3);
-                            cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
-                        }
+                // A warm-up frame, then the median wall and mean CPU time of `runs` frames.
+                let time = |render: &dyn Fn() -> Rendered| {
+                    std::hint::black_box(render());
+                    let (mut ms, mut cpu) = (vec![], 0.0);
+                    for _ in 0..runs {
+                        timed_frame(&mut ms, &mut cpu, render);
                     }
                     (median(ms), cpu / runs as f64)
                 };
@@ -194,10 +190,9 @@ pub(super) fn section(
                 let frames = if quick { 2 } else { 8 };
                 for i in 1..=frames {
                     let cam = camera_at(ORBIT_DEG * i as f32);
-                    let (c0, t0) = (process_cpu_ms(), Instant::now());
-                    std::hint::black_box(shader.render(&light, &cam, None, &opts));
-                    ms.push(t0.elapsed().as_secs_f64() * 1e3);
-                    cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
+                    timed_frame(&mut ms, &mut cpu, &|| {
+                        shader.render(&light, &cam, None, &opts)
+                    });
                 }
                 let (frame, frame_cpu) = (median(ms), cpu / frames as f64);
                 let kept = shader.merge_cache_bytes();
@@ -223,10 +218,9 @@ pub(super) fn section(
                         .map_err(bad)?;
                     cut_ms.push(t0.elapsed().as_secs_f64() * 1e3);
                     let cam = camera_at(ORBIT_DEG * i as f32);
-                    let (c0, t0) = (process_cpu_ms(), Instant::now());
-                    std::hint::black_box(turning.render(&light_i, &cam, None, &opts));
-                    ms.push(t0.elapsed().as_secs_f64() * 1e3);
-                    cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
+                    timed_frame(&mut ms, &mut cpu, &|| {
+                        turning.render(&light_i, &cam, None, &opts)
+                    });
                 }
                 let (rotating, rotating_cpu) = (median(ms), cpu / frames as f64);
                 let (light_power, new_cut) = (median(power_ms), median(cut_ms));
@@ -272,4 +266,13 @@ pub(super) fn section(
         }
     }
     Ok(sec)
+}
+
+/// One frame of `render`: its wall time (ms) pushed onto `ms`, its process CPU time (ms)
+/// added to `cpu`.
+fn timed_frame(ms: &mut Vec<f64>, cpu: &mut f64, render: &dyn Fn() -> Rendered) {
+    let (c0, t0) = (process_cpu_ms(), Instant::now());
+    std::hint::black_box(render());
+    ms.push(t0.elapsed().as_secs_f64() * 1e3);
+    *cpu += process_cpu_ms().zip(c0).map_or(f64::NAN, |(b, a)| b - a);
 }
