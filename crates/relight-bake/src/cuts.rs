@@ -82,6 +82,7 @@ pub mod cut;
 pub mod light_cut;
 pub mod local;
 pub mod merge;
+pub mod nearest;
 pub mod samples;
 pub mod settings;
 pub mod surface;

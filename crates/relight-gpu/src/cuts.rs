@@ -17,7 +17,7 @@ use crate::layout::{
 use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
 use relight_bake::cuts::light_cut::LightCut;
-use relight_bake::cuts::samples::sample_power;
+use relight_bake::cuts::samples::{sample_power_with, NearestSample};
 use relight_bake::cuts::visibility::CutFunction;
 use relight_method::cuts::{CutsBaked, CutsFrameSettings};
 use relight_method::{FrameOptions, MethodKind};
@@ -43,6 +43,8 @@ pub(crate) struct CutsGpuFrame<'a> {
     bases: [u32; 3],
     /// The prepared light cut and the bind group reading it.
     prepared: Option<(LightCut, wgpu::BindGroup)>,
+    /// The nearest-sample grid of the bake's light samples, built at the first environment.
+    sample_grid: Option<NearestSample>,
 }
 
 /// The GPU form of `m` (a plastic's transmittance table appended to `tables`), or why it is
@@ -229,6 +231,7 @@ impl<'a> CutsGpuFrame<'a> {
             cuts,
             bases,
             prepared: None,
+            sample_grid: None,
         })
     }
 }
@@ -245,7 +248,10 @@ impl GpuFrame for CutsGpuFrame<'_> {
             GpuError::Method(relight_method::MethodError::Environment(e.to_string()))
         };
         let b = &self.baked.bake;
-        let power = sample_power(&b.samples, env).map_err(bad)?;
+        let grid = self
+            .sample_grid
+            .get_or_insert_with(|| NearestSample::new(&b.samples.dirs));
+        let power = sample_power_with(&b.samples, grid, env).map_err(bad)?;
         let light = LightCut::build(
             &b.tree,
             &power,

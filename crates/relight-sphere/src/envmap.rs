@@ -293,6 +293,17 @@ impl EnvMap {
         }
     }
 
+    /// `texel(i).dir` for every `i`, bit for bit, by a table for a latlong map
+    /// ([`latlong::TexelDirs`]): for passes over every texel's direction.
+    pub fn texel_dirs(&self) -> impl Fn(usize) -> Vec3 + Sync + '_ {
+        let table = (self.layout == EnvLayout::LatLong)
+            .then(|| latlong::TexelDirs::new(self.width, self.height));
+        move |i| match &table {
+            Some(t) => t.dir(i % self.width, i / self.width),
+            None => self.texel(i).dir,
+        }
+    }
+
     /// Quadrature sample `i`: direction, exact weight and value (see module docs).
     ///
     /// # Panics
@@ -452,6 +463,21 @@ mod tests {
 
     fn pattern(d: Vec3) -> Vec3 {
         Vec3::new(1.0 + d.x, 2.0 + d.y * d.z, 0.5 + 0.4 * (3.0 * d.z).sin())
+    }
+
+    /// The table of texel directions is `texel(i).dir`, bit for bit, for every layout and
+    /// for latlong maps of odd, even and two-row heights.
+    #[test]
+    fn texel_dirs_are_the_texels_directions() {
+        let mut all = maps();
+        all.push(EnvMap::latlong_from_fn(512, 257, pattern));
+        all.push(EnvMap::latlong_from_fn(7, 2, pattern));
+        for m in all {
+            let dirs = m.texel_dirs();
+            for i in 0..m.texel_count() {
+                assert_eq!(dirs(i), m.texel(i).dir, "{m:?}, texel {i}");
+            }
+        }
     }
 
     fn maps() -> Vec<EnvMap> {

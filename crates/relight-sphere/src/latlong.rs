@@ -72,6 +72,48 @@ pub fn texel_dir(width: usize, height: usize, col: usize, row: usize) -> Vec3 {
     Vec3::new((sp * st) as f32, ct as f32, (-cp * st) as f32)
 }
 
+/// Every texel direction of a `width x height` map, [`texel_dir`] bit for bit, from
+/// per-column and per-row sines and cosines: `width + height` pairs of f64 `sin_cos`
+/// instead of two per texel (which were a quarter of the cuts frame's lights' power under a
+/// new environment, docs/RESULTS.md §11).
+#[derive(Clone, Debug)]
+pub struct TexelDirs {
+    /// `(sin phi, cos phi)` of each column.
+    cols: Vec<(f64, f64)>,
+    /// `(sin theta, cos theta)` of each row, exact at the poles as in [`texel_dir`].
+    rows: Vec<(f64, f64)>,
+}
+
+impl TexelDirs {
+    /// The table of a `width x height` map.
+    ///
+    /// # Panics
+    /// Debug builds: `height < 2`.
+    pub fn new(width: usize, height: usize) -> TexelDirs {
+        let cols = (0..width)
+            .map(|col| (2.0 * PI64 * (col as f64 + 0.5) / width as f64).sin_cos())
+            .collect();
+        let rows = (0..height)
+            .map(|row| match row {
+                0 => (0.0, 1.0),
+                r if r + 1 == height => (0.0, -1.0),
+                r => row_theta(height, r).sin_cos(),
+            })
+            .collect();
+        TexelDirs { cols, rows }
+    }
+
+    /// [`texel_dir`] of texel `(col, row)`.
+    ///
+    /// # Panics
+    /// `col` or `row` out of range.
+    #[inline]
+    pub fn dir(&self, col: usize, row: usize) -> Vec3 {
+        let ((sp, cp), (st, ct)) = (self.cols[col], self.rows[row]);
+        Vec3::new((sp * st) as f32, ct as f32, (-cp * st) as f32)
+    }
+}
+
 /// Exact quadrature weight (solid angle) of every texel of row `row` (see module docs).
 #[inline]
 pub fn row_weight(width: usize, height: usize, row: usize) -> f64 {

@@ -15,10 +15,11 @@
 //! that contains no texel centre (a map coarser than the samples) takes the map's bilinear
 //! value at the sample's direction.
 //!
-//! Nearest-sample queries use a uniform grid over the cube `[-1, 1]^3` ([`NearestSample`]),
-//! searched in growing rings until no unvisited cell can hold a nearer point: exact, not
+//! Nearest-sample queries use a uniform grid over the cube `[-1, 1]^3` ([`NearestSample`],
+//! `cuts::nearest`), searched until no unvisited cell can hold a nearer point: exact, not
 //! approximate.
 
+pub use super::nearest::NearestSample;
 use super::CutsError;
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
@@ -136,7 +137,21 @@ pub fn voronoi_solid_angles(dirs: &[Vec3], dense: usize) -> Vec<f32> {
 /// # Errors
 /// As [`sample_radiance`].
 pub fn sample_power(samples: &EnvSamples, env: &Environment) -> Result<Vec<Vec3>, CutsError> {
-    let radiance = sample_radiance(samples, env)?;
+    sample_power_with(samples, &NearestSample::new(&samples.dirs), env)
+}
+
+/// [`sample_power`] with the samples' grid built once by the caller (`grid` over
+/// `samples.dirs`): what a frame holds, so a new environment or rotation costs the texels'
+/// pass alone.
+///
+/// # Errors
+/// As [`sample_radiance`].
+pub fn sample_power_with(
+    samples: &EnvSamples,
+    grid: &NearestSample,
+    env: &Environment,
+) -> Result<Vec<Vec3>, CutsError> {
+    let radiance = sample_radiance_with(samples, grid, env)?;
     Ok(radiance
         .iter()
         .zip(&samples.solid_angles)
@@ -153,17 +168,46 @@ pub fn sample_power(samples: &EnvSamples, env: &Environment) -> Result<Vec<Vec3>
 /// [`CutsError::Environment`] if a texel is NaN, infinite or negative (naming the texel), or
 /// the scale is.
 pub fn sample_radiance(samples: &EnvSamples, env: &Environment) -> Result<Vec<Vec3>, CutsError> {
+    sample_radiance_with(samples, &NearestSample::new(&samples.dirs), env)
+}
+
+/// Texels per run of [`sample_radiance_with`]'s nearest-sample pass: each run is one task,
+/// its texels in map order, each query hinted with the previous texel's sample.
+const TEXEL_RUN: usize = 2048;
+
+/// [`sample_radiance`] with the samples' grid built by the caller (`grid` over
+/// `samples.dirs`). The nearest sample of every texel is searched from the previous texel's
+/// (`NearestSample::nearest_from`: neighbouring texels of a row mostly share a Voronoi cell),
+/// the same answers as without the hint.
+///
+/// # Errors
+/// As [`sample_radiance`].
+pub fn sample_radiance_with(
+    samples: &EnvSamples,
+    grid: &NearestSample,
+    env: &Environment,
+) -> Result<Vec<Vec3>, CutsError> {
     check_environment(env)?;
     let map = &env.map;
     let world_from_env = env.world_from_env();
     let env_from_world = env.env_from_world();
-    let grid = NearestSample::new(&samples.dirs);
+    let texel_dir = map.texel_dirs();
     // Nearest sample of every texel in parallel, then sums in texel order (deterministic).
-    let cell: Vec<u32> = (0..map.texel_count())
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|i| grid.nearest((world_from_env * map.texel(i).dir).normalize()) as u32)
-        .collect();
+    let mut cell = vec![0u32; map.texel_count()];
+    cell.par_chunks_mut(TEXEL_RUN)
+        .enumerate()
+        .for_each(|(run, cells)| {
+            let mut hint = None;
+            for (j, c) in cells.iter_mut().enumerate() {
+                let d = (world_from_env * texel_dir(run * TEXEL_RUN + j)).normalize();
+                let k = match hint {
+                    Some(h) => grid.nearest_from(d, h),
+                    None => grid.nearest(d),
+                };
+                *c = k as u32;
+                hint = Some(k);
+            }
+        });
     let mut acc = vec![[0f64; 4]; samples.len()];
     for (i, &k) in cell.iter().enumerate() {
         let t = map.texel(i);
@@ -216,169 +260,11 @@ pub fn check_environment(env: &Environment) -> Result<(), CutsError> {
     Ok(())
 }
 
-/// Exact nearest-direction queries over a fixed set of unit directions: a uniform grid over
-/// `[-1, 1]^3` whose cells (about two sample spacings wide) list the directions inside them.
-#[derive(Clone, Debug)]
-pub struct NearestSample {
-    dirs: Vec<Vec3>,
-    /// Cell edge.
-    cell: f32,
-    /// Cells per axis.
-    dims: usize,
-    /// `items[starts[c]..starts[c + 1]]` are the directions in cell `c`.
-    starts: Vec<u32>,
-    items: Vec<u32>,
-}
-
-impl NearestSample {
-    /// The grid over `dirs` (unit directions).
-    ///
-    /// # Panics
-    /// Debug builds: `dirs` empty.
-    pub fn new(dirs: &[Vec3]) -> NearestSample {
-        debug_assert!(!dirs.is_empty());
-        let spacing = (4.0 * std::f32::consts::PI / dirs.len() as f32).sqrt();
-        let dims = ((2.0 / (2.0 * spacing)).ceil() as usize).clamp(1, 256);
-        let cell = 2.0 / dims as f32;
-        let mut grid = NearestSample {
-            dirs: dirs.to_vec(),
-            cell,
-            dims,
-            starts: vec![0; dims * dims * dims + 1],
-            items: vec![0; dirs.len()],
-        };
-        let keys: Vec<usize> = dirs.iter().map(|&d| grid.flat(grid.coords(d))).collect();
-        for &k in &keys {
-            grid.starts[k + 1] += 1;
-        }
-        for c in 0..grid.starts.len() - 1 {
-            grid.starts[c + 1] += grid.starts[c];
-        }
-        let mut fill = grid.starts.clone();
-        for (i, &k) in keys.iter().enumerate() {
-            grid.items[fill[k] as usize] = i as u32;
-            fill[k] += 1;
-        }
-        grid
-    }
-
-    fn coords(&self, p: Vec3) -> [usize; 3] {
-        let c = |x: f32| (((x + 1.0) / self.cell).floor().max(0.0) as usize).min(self.dims - 1);
-        [c(p.x), c(p.y), c(p.z)]
-    }
-
-    fn flat(&self, c: [usize; 3]) -> usize {
-        (c[2] * self.dims + c[1]) * self.dims + c[0]
-    }
-
-    /// Index of the direction nearest to `d` (largest dot product; ties to the lower index).
-    /// The cell of `d` is searched first; then the blocks of cells around it, ring by ring,
-    /// skipping every cell whose box lies further from `d` than the nearest direction found
-    /// so far (it cannot hold a nearer one, nor an equal one: the box distance is reduced by
-    /// [`BOX_SLACK`] for f32 rounding).
-    pub fn nearest(&self, d: Vec3) -> usize {
-        let c = self.coords(d);
-        let mut best = (f32::INFINITY, usize::MAX);
-        self.scan(self.flat(c), d, &mut best);
-        // Per axis, the distance from `d` to the lower and the upper side of its cell.
-        let base = c.map(|x| -1.0 + x as f32 * self.cell);
-        let below = [d.x - base[0], d.y - base[1], d.z - base[2]];
-        let gap = |axis: usize, cell: usize| {
-            let k = cell as f32 - c[axis] as f32;
-            let g = if k > 0.0 {
-                (k - 1.0) * self.cell + (self.cell - below[axis])
-            } else if k < 0.0 {
-                (-k - 1.0) * self.cell + below[axis]
-            } else {
-                0.0
-            };
-            (g - BOX_SLACK).max(0.0)
-        };
-        let mut ring = 1usize;
-        loop {
-            let lo = c.map(|x| x.saturating_sub(ring));
-            let hi = c.map(|x| (x + ring).min(self.dims - 1));
-            for z in lo[2]..=hi[2] {
-                let gz = gap(2, z);
-                for y in lo[1]..=hi[1] {
-                    let gzy = gz * gz + gap(1, y).powi(2);
-                    if gzy > best.0 {
-                        continue;
-                    }
-                    for x in lo[0]..=hi[0] {
-                        // Inside the previous block: searched already.
-                        let inner = [x, y, z]
-                            .iter()
-                            .zip(&c)
-                            .all(|(&a, &b)| a.abs_diff(b) < ring);
-                        if inner || gzy + gap(0, x).powi(2) > best.0 {
-                            continue;
-                        }
-                        self.scan(self.flat([x, y, z]), d, &mut best);
-                    }
-                }
-            }
-            // Every direction outside the block is more than `ring` cells away along one axis.
-            let whole = lo.iter().all(|&x| x == 0) && hi.iter().all(|&x| x == self.dims - 1);
-            let reach = ring as f32 * self.cell;
-            if whole || (best.1 != usize::MAX && best.0 <= reach * reach) {
-                return best.1;
-            }
-            ring += 1;
-        }
-    }
-
-    /// The directions of cell `k` against the best `(distance^2, index)` so far.
-    #[inline]
-    fn scan(&self, k: usize, d: Vec3, best: &mut (f32, usize)) {
-        for &i in &self.items[self.starts[k] as usize..self.starts[k + 1] as usize] {
-            let d2 = (self.dirs[i as usize] - d).length_squared();
-            if d2 < best.0 || (d2 == best.0 && (i as usize) < best.1) {
-                *best = (d2, i as usize);
-            }
-        }
-    }
-}
-
-/// Slack on the distance from a query to a cell's box ([`NearestSample::nearest`]): covers
-/// the f32 rounding of the cell's bounds and of a direction's cell (a hundred times the
-/// rounding of coordinates of magnitude 1), far below a cell (`2 / dims`, at least 2^-7).
-const BOX_SLACK: f32 = 1e-5;
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use relight_sphere::EnvMap;
     use std::f32::consts::PI as PI32;
-
-    /// Brute-force nearest direction (the slow reference of [`NearestSample::nearest`]).
-    fn nearest_slow(dirs: &[Vec3], d: Vec3) -> usize {
-        let mut best = (f32::INFINITY, 0);
-        for (i, &s) in dirs.iter().enumerate() {
-            let d2 = (s - d).length_squared();
-            if d2 < best.0 {
-                best = (d2, i);
-            }
-        }
-        best.1
-    }
-
-    #[test]
-    fn nearest_grid_matches_brute_force() {
-        for n in [1usize, 2, 7, 300, 5000, 32768] {
-            let s = EnvSamples {
-                dirs: (0..n).map(|i| fibonacci_point(i, n)).collect(),
-                solid_angles: vec![],
-            };
-            let grid = NearestSample::new(&s.dirs);
-            let mut rng = Rng::new(9, n as u64);
-            for _ in 0..2000 {
-                let d = relight_sphere::warp::square_to_uniform_sphere(rng.next_vec2());
-                // The same index, ties included (both keep the lower index of equal distances).
-                assert_eq!(grid.nearest(d), nearest_slow(&s.dirs, d), "n {n}, {d}");
-            }
-        }
-    }
 
     #[test]
     fn solid_angles_sum_to_4pi_and_are_nearly_equal() {
@@ -499,6 +385,56 @@ mod tests {
         let r = sample_radiance(&s, &env).unwrap();
         for (&ri, &d) in r.iter().zip(&s.dirs) {
             assert!((ri - env.radiance(d)).length() < 0.15);
+        }
+    }
+
+    /// The hinted pass gives every texel its brute-force nearest sample: the radiance equals,
+    /// bit for bit, the same means over a brute-force assignment (latlong rotated, cube,
+    /// probe; maps finer and coarser than the samples).
+    #[test]
+    fn radiance_is_the_brute_force_assignment() {
+        let s = EnvSamples::fibonacci(700, 4).unwrap();
+        let f = |d: Vec3| Vec3::new(1.0 + d.x.max(0.0), 2.0 + d.y, 0.5 + d.z * d.z);
+        let maps = [
+            EnvMap::latlong_from_fn(96, 49, f),
+            EnvMap::latlong_from_fn(20, 11, f),
+            EnvMap::cube_from_fn(24, f),
+            EnvMap::probe_from_fn(48, f),
+        ];
+        for map in maps {
+            let mut env = Environment::new(map);
+            env.rotate_y_deg = 37.0;
+            let got = sample_radiance(&s, &env).unwrap();
+            let mut acc = vec![[0f64; 4]; s.len()];
+            for i in 0..env.map.texel_count() {
+                let t = env.map.texel(i);
+                let d = (env.world_from_env() * t.dir).normalize();
+                let k = (0..s.len())
+                    .min_by(|&a, &b| {
+                        let (da, db) = (
+                            (s.dirs[a] - d).length_squared(),
+                            (s.dirs[b] - d).length_squared(),
+                        );
+                        da.total_cmp(&db).then(a.cmp(&b))
+                    })
+                    .unwrap();
+                let w = t.solid_angle as f64;
+                let a = &mut acc[k];
+                a[0] += t.value.x as f64 * w;
+                a[1] += t.value.y as f64 * w;
+                a[2] += t.value.z as f64 * w;
+                a[3] += w;
+            }
+            for (k, a) in acc.iter().enumerate() {
+                if a[3] > 0.0 {
+                    let want = Vec3::new(
+                        (a[0] / a[3]) as f32,
+                        (a[1] / a[3]) as f32,
+                        (a[2] / a[3]) as f32,
+                    );
+                    assert_eq!(got[k], want, "{:?}, sample {k}", env.map);
+                }
+            }
         }
     }
 

@@ -178,7 +178,7 @@ pub(super) fn sections(
         &[
             "budget",
             "build (ms)",
-            "sample radiance (ms)",
+            "sample radiance, grid included (ms)",
             "error bound met",
         ],
     );

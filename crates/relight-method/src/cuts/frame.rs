@@ -9,7 +9,7 @@ use super::local::{LocalTerms, PointLightArgs};
 use super::CutsBaked;
 use crate::{ms_since, Frame, FrameOptions, FrameOutput, MethodError, MethodKind, PrepareTimes};
 use relight_bake::cuts::light_cut::{LightCut, DEFAULT_LIGHT_SIGMA};
-use relight_bake::cuts::samples::sample_power;
+use relight_bake::cuts::samples::{sample_power_with, NearestSample};
 use relight_render::light::PointLight;
 use relight_render::raster::RasterOptions;
 use relight_render::shade_cuts::CutsShader;
@@ -109,6 +109,9 @@ pub struct CutsFrame<'a> {
     shader: CutsShader<'a>,
     settings: CutsFrameSettings,
     lighting: Option<(LightCut, Environment)>,
+    /// The nearest-sample grid of the bake's light samples, built at the first environment
+    /// (every later one costs the texels' pass alone, `sample_power_with`).
+    sample_grid: Option<NearestSample>,
     /// Over a bake of surface samples: the shadow-ray caster, the light, its lighting.
     local: Option<LocalState>,
 }
@@ -209,6 +212,7 @@ impl<'a> CutsFrame<'a> {
             .with_cluster_spread(s.cluster_spread),
             settings: s.clone(),
             lighting: None,
+            sample_grid: None,
             local,
         })
     }
@@ -275,7 +279,10 @@ impl Frame for CutsFrame<'_> {
         let t0 = Instant::now();
         let samples = &self.baked.bake.samples;
         let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
-        let power = sample_power(samples, env).map_err(bad)?;
+        let grid = self
+            .sample_grid
+            .get_or_insert_with(|| NearestSample::new(&samples.dirs));
+        let power = sample_power_with(samples, grid, env).map_err(bad)?;
         let environment_ms = ms_since(t0);
         let t1 = Instant::now();
         let light = LightCut::build(
