@@ -34,7 +34,7 @@ pub enum EvalMethod {
 ///
 /// The SG bake's options are `relight bake --method sg`'s, except that `--direct-lobes`
 /// takes a comma-separated list here (`--direct-lobes 1,2,3`): every experiment is baked and
-/// scored once per count (read with [`direct_lobes`]; the bake settings keep the first).
+/// scored once per count (read with `direct_lobes`; the bake settings keep the first).
 #[derive(clap::Args)]
 #[command(mut_arg("direct_lobes", |a| a
     .value_delimiter(',')

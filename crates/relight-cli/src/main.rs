@@ -98,11 +98,11 @@ struct BenchArgs {
     /// Rays per throughput measurement.
     #[arg(long, default_value_t = 2_000_000)]
     rays: usize,
-    /// Mesh for the ray benchmark (default: <data>/data/meshes/dragon.obj, else a procedural
+    /// Mesh for the ray benchmark (default: DATA/data/meshes/dragon.obj with DATA the --data folder, else a procedural
     /// 100K-triangle sphere).
     #[arg(long)]
     ray_mesh: Option<PathBuf>,
-    /// Mesh for the bake benchmark (default: <data>/data/meshes/bunny_watertight.obj, else a
+    /// Mesh for the bake benchmark (default: DATA/data/meshes/bunny_watertight.obj with DATA the --data folder, else a
     /// procedural sphere on a plane).
     #[arg(long)]
     bake_mesh: Option<PathBuf>,

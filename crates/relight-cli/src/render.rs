@@ -43,14 +43,16 @@ pub struct Args {
     /// Draw the environment behind the objects.
     #[arg(long)]
     pub background: bool,
-    /// Tone map for PNG outputs: linear[:EXPOSURE], reinhard[:EXPOSURE], exp[:GAMMA].
+    /// Tone map for PNG outputs: linear, reinhard or exp, each with an optional parameter
+    /// (linear:EXPOSURE, reinhard:EXPOSURE, exp:GAMMA).
     #[arg(long, default_value = "exp:1")]
     pub tonemap: String,
     /// SH order of the lighting (sh) or of the environment's SH part (hybrid); at most the
     /// bake's (default: the bake's).
     #[arg(long, visible_alias = "order")]
     pub sh_order: Option<usize>,
-    /// Window of the lighting's SH against ringing (sh): none, hann, lanczos, sloan[:LAMBDA].
+    /// Window of the lighting's SH against ringing (sh): none, hann, lanczos, sloan or
+    /// sloan:LAMBDA.
     #[arg(long, default_value = "none")]
     pub window: String,
     /// Hybrid options.

@@ -4,7 +4,7 @@
 //! Metadata (strings, JSON where structured):
 //! * `method`: the bake kind, `sh`, `sg`, `cuts` or `vmf` ([`crate::BakeKind::name`]);
 //! * `schema`: `2` since the method seam (absent in older bundles, which still load:
-//!   [`legacy_record`] and each method's settings migration read them);
+//!   `legacy_record` and each method's settings migration read them);
 //! * `relight_version`: the crate version that wrote it;
 //! * `settings`: the method's settings (its `Method::Settings`, serde), written once;
 //! * `record`: how the bake ran ([`BakeRecord`]: back-end, storage precision, and for a part

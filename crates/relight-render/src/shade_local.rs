@@ -267,7 +267,7 @@ impl<'a> LocalShader<'a> {
 
     /// Render `camera` under the prepared light (`terms` of it), the background black:
     /// [`raster::render_deferred_batched`], each triangle's cuts merged with the light cut
-    /// once per band of rows ([`TriangleMerge`]) and summed per fragment. Equal to
+    /// once per band of rows (`TriangleMerge`) and summed per fragment. Equal to
     /// [`LocalShader::render_per_fragment`] up to f32 rounding (tested).
     ///
     /// # Panics

@@ -11,7 +11,7 @@
 //!   direction: for every other `j`, `|d - s_j| >= |s_j - s_k| - |d - s_k| > 2 r_k - r_k`.
 //!   The search stops as soon as its best direction is that close (for well-spread samples,
 //!   the inscribed disc is about nine tenths of a hexagonal Voronoi cell). The stored radius
-//!   is shrunk by [`CERTAIN_MARGIN`] so that f32 rounding of the distances cannot turn the
+//!   is shrunk by `CERTAIN_MARGIN` so that f32 rounding of the distances cannot turn the
 //!   strict inequality around.
 //! * **A hint** ([`NearestSample::nearest_from`]): the answer of a nearby query (the previous
 //!   texel of a row). The query's nearest direction is then usually the hint or one of its

@@ -97,10 +97,10 @@ pub fn vertex_difference(
 
 /// Bake `mesh` with the adaptive spatial refinement (module docs): the bake of the refined
 /// mesh, the refined mesh and what was done. `materials`, `vertex_materials`: as
-/// [`super::bake`].
+/// [`super::bake()`].
 ///
 /// # Errors
-/// As [`super::bake`]; [`BakeError::Settings`] if `spatial_threshold` is 0 (refinement off).
+/// As [`super::bake()`]; [`BakeError::Settings`] if `spatial_threshold` is 0 (refinement off).
 pub fn bake_refined(
     mesh: &TriMesh,
     materials: &[Material],

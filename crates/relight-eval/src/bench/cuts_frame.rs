@@ -4,7 +4,7 @@
 //! The whole mesh (`bunny.obj`, else a procedural sphere on a plane) is baked once with the
 //! default settings (binary visibility) (32,768 lights; 4,096 with `quick`), then rendered at
 //! 512 x 512, one sample per pixel, under a sky with a sun
-//! ([`super::cuts_bake::sky_with_sun`]), for a Lambert, a GGX conductor and a GGX plastic
+//! (`super::cuts_bake::sky_with_sun`), for a Lambert, a GGX conductor and a GGX plastic
 //! material (glossy ones with the frame's default cluster spread) at the light cuts
 //! 128, 256 and 512 (256 only with `quick`). The default frame (`CutsShader::render`) first
 //! merges every vertex's cut with the light cut (`CutsShader::prepare`: once per light cut,

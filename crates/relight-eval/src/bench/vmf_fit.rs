@@ -1,7 +1,7 @@
 //! The vMF material fit, EM against nonlinear least squares (section "vMF fit"; issue 12
 //! item 3, the paper's section 6.1: "For a Blinn-Phong BRDF with glossy exponent e = 128,
 //! it takes about 47 seconds to compute all slice parameters with the nonlinear minimization
-//! procedure [CL96]. Fitting a similar transfer function with our EM estimation on the other
+//! procedure \[CL96\]. Fitting a similar transfer function with our EM estimation on the other
 //! hand, takes about 2 seconds").
 //!
 //! Per view, the two ways of getting the eq. 9 glossy lobe of a Blinn-Phong material:

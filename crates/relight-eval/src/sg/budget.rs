@@ -18,11 +18,11 @@
 //! Two study rows follow (not links of the frame's chain): `pixel fit, texel sum` is the
 //! `pixel fit` row's lobes integrated by the texel sum of `tabulated` (the representation
 //! alone, at the tabulated row's resolution), and `half-vector fit, texel sum` fits the same
-//! cube map with lobes in the half-vector domain ([`half_vector_fit`]), which the frame cannot
+//! cube map with lobes in the half-vector domain (`half_vector_fit`), which the frame cannot
 //! render yet: what that representation would give (docs/RESULTS.md §8, session 25);
 //! `half-vector fit, 5 taps` integrates those lobes with prefiltered lookups as a frame would
-//! ([`half_vector_taps`]), and `half-vector fit, warp table` does so with the tabulated
-//! Gaussians of `relight_sphere::half_vector` ([`half_vector_table`], session 26).
+//! (`half_vector_taps`), and `half-vector fit, warp table` does so with the tabulated
+//! Gaussians of `relight_sphere::half_vector` (`half_vector_table`, session 26).
 //!
 //! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
 //! fit` on. For a half-vector bake (`--lobe-domain half-vector`) the rows' fits are the
@@ -228,7 +228,7 @@ const HERMITE5: [(f32, f32); 5] = [
     (-2.856_97, 0.011_257_4),
 ];
 
-/// The study row `half-vector fit, 5 taps`: world-frame half-vector lobes ([`half_vector_fit`])
+/// The study row `half-vector fit, 5 taps`: world-frame half-vector lobes (`half_vector_fit`)
 /// integrated with isotropic prefiltered lookups, as a frame would. Each Gaussian term
 /// `a exp(s (m . h - 1))` is, around the mirror direction `w0 = 2 (v.m) m - v`, about an
 /// anisotropic Gaussian of sharpness `s / 4` in the plane of incidence (`w` turns twice as
@@ -283,7 +283,7 @@ fn half_vector_taps(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe],
 }
 
 /// The study row `half-vector fit, warp table`: world-frame half-vector lobes
-/// ([`half_vector_fit`]) integrated with the tabulated isotropic Gaussians of
+/// (`half_vector_fit`) integrated with the tabulated isotropic Gaussians of
 /// [`relight_sphere::half_vector`] (five prefiltered lookups per Gaussian term, fitted once
 /// to the warped term over the sphere), as a frame would.
 fn half_vector_table(lighting: &SgLighting, kernel: LobeKernel, lobes: &[SgLobe], v: Vec3) -> Vec3 {

@@ -176,7 +176,7 @@ fn lobe_distance(a: &SgLobe, b: &SgLobe) -> f32 {
 /// entries are meaningful.
 ///
 /// # Panics
-/// Debug builds assert equal lengths of at most [`MAX_MATCH`].
+/// Debug builds assert equal lengths of at most `MAX_MATCH`.
 pub fn match_corners(reference: &[SgLobe], other: &[SgLobe]) -> [u8; MAX_MATCH] {
     let n = reference.len();
     debug_assert!(n == other.len() && n <= MAX_MATCH);

@@ -41,7 +41,7 @@ impl RegionPlan {
 }
 
 /// The fits of the vertices of some regions, before the regions are aligned (rows in
-/// ascending vertex order): what a part of a sharded bake holds, and what [`finish`] takes
+/// ascending vertex order): what a part of a sharded bake holds, and what `finish` takes
 /// once the parts are put together.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartFit {
