@@ -82,6 +82,11 @@ pub struct Args {
     /// interreflections).
     #[arg(long)]
     pub budget: bool,
+    /// SG: score the error budget on every N-th pixel along each axis only (its per-sample
+    /// rows fit a cube map at each of the 16 samples of a pixel: a frame-filling object takes
+    /// hours at 1). The frame's rows are scored on the same pixels.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub budget_stride: u32,
     /// SG: run only these of the default experiments (comma-separated names, e.g.
     /// `fig3-4_conductor,teapot_dawn_conductor`).
     #[arg(long, value_delimiter = ',')]
@@ -217,6 +222,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
                     .map_or(vec![], |v| v.copied().collect()),
                 lobes_by_material: !args::sg_lobes_given(m),
                 budget: a.budget,
+                budget_stride: a.budget_stride as usize,
                 spp: a.spp,
                 width: a.width,
                 out: a.out.clone(),

@@ -172,6 +172,8 @@ pub struct SgEval {
     pub lobes_by_material: bool,
     /// Also compute the error budget ([`budget`]) of every bake.
     pub budget: bool,
+    /// The budget's pixels: every `budget_stride`-th along each axis (at least 1).
+    pub budget_stride: usize,
     /// Mitsuba samples per pixel per seed.
     pub spp: u32,
     /// Image width (the height keeps the camera's aspect).
@@ -248,7 +250,7 @@ pub fn run(e: &SgEval) -> Result<Vec<Row>> {
         md.push_str(&lobe_table(&rows, &e.lobes));
     }
     if e.budget {
-        md.push_str(&budget_table(&budget));
+        md.push_str(&budget_table(&budget, e.budget_stride));
         let json = serde_json::to_string_pretty(&budget)
             .map_err(|x| crate::EvalError::Options(format!("cannot write budget.json: {x}")))?;
         relight_bundle::write_atomic(&e.out.join("budget.json"), json.as_bytes())?;
@@ -396,6 +398,7 @@ fn run_one(
                 direct_reference: (depth == 2).then_some(&r.mean),
                 mask: &mask,
                 shade: ShadeOptions::for_bake(&sg.bake),
+                stride: e.budget_stride,
             })?);
         }
     }
@@ -597,9 +600,14 @@ fn lobe_table(rows: &[Row], lobes: &[usize]) -> String {
 }
 
 /// The error budget rows (module docs of [`budget`]) as a table.
-fn budget_table(rows: &[budget::BudgetRow]) -> String {
-    let mut md = String::from(
-        "\nError budget (direct glossy; 4 x 4 samples per pixel; against Mitsuba at max_depth 2)\n\n| experiment | lobes | row | rel. RMSE | mean abs. lum. error |\n|---|---|---|---|---|\n",
+fn budget_table(rows: &[budget::BudgetRow], stride: usize) -> String {
+    let pixels = if stride > 1 {
+        format!("; every {stride}th pixel along each axis")
+    } else {
+        String::new()
+    };
+    let mut md = format!(
+        "\nError budget (direct glossy; 4 x 4 samples per pixel{pixels}; against Mitsuba at max_depth 2)\n\n| experiment | lobes | row | rel. RMSE | mean abs. lum. error |\n|---|---|---|---|---|\n",
     );
     for r in rows {
         let _ = writeln!(

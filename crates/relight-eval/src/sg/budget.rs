@@ -323,6 +323,9 @@ pub struct BudgetInput<'a> {
     pub mask: &'a [bool],
     /// How the frame interpolates lobes.
     pub shade: ShadeOptions,
+    /// Every row is scored on the pixels of `mask` whose column and row are multiples of
+    /// `stride` (at least 1); the per-sample rows are computed there only.
+    pub stride: usize,
 }
 
 /// The budget rows of one bake (module docs), writing each row's image as
@@ -376,8 +379,15 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let lbar = texel_means(env, res);
     let (_, solid) = ctx.direct_texels();
     let (sin_h, cos_h) = settings.horizon_deg.to_radians().sin_cos();
+    let stride = b.stride.max(1);
+    let mask: Vec<bool> = (b.mask.iter().enumerate())
+        .map(|(i, &m)| {
+            m && (i % scene.camera.width as usize) % stride == 0
+                && (i / scene.camera.width as usize) % stride == 0
+        })
+        .collect();
     let [tabulated, pixel_fit, texel_fit, half_fit, half_taps, half_table] =
-        per_sample(scene, &prepared, |p, nrm, ng, x, out| {
+        per_sample(scene, &prepared, &mask, |p, nrm, ng, x, out| {
             // The view the cube map is computed for (clamped above the horizon as the bake
             // clamps it): a half-vector fit maps its directions with this one.
             let view = (eye - p).normalize_or(nrm);
@@ -492,7 +502,7 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     ];
     let mut out = vec![];
     for (name, img) in rows {
-        let m = compare::metrics(img, reference, Some(b.mask));
+        let m = compare::metrics(img, reference, Some(&mask));
         let file = b
             .dir
             .join(format!("budget_l{n}_{}.exr", name.replace(' ', "_")));
@@ -546,14 +556,15 @@ fn blend_corners(
     (blended, p)
 }
 
-/// Shades every sample covered by the mesh (`SUPERSAMPLE`^2 per pixel) with `f(point,
-/// shading normal, geometric normal, nearest vertex, out)`, which writes `K` glossy
-/// radiances; the frame's diffuse part (Gouraud, as the frame) is added to each. Returns the
-/// `K` images, box filtered (uncovered samples count as black, as the frame without
-/// background).
+/// Shades every sample covered by the mesh (`SUPERSAMPLE`^2 per pixel) in the pixels set in
+/// `pixels` with `f(point, shading normal, geometric normal, nearest vertex, out)`, which
+/// writes `K` glossy radiances; the frame's diffuse part (Gouraud, as the frame) is added to
+/// each. Returns the `K` images, box filtered (uncovered samples, and the pixels not set,
+/// black).
 fn per_sample<const K: usize>(
     scene: &Scene,
     frame: &SgFrame,
+    pixels: &[bool],
     f: impl Fn(Vec3, Vec3, Vec3, usize, &mut [Vec3; K]) + Sync,
 ) -> [Image; K] {
     let mesh = &scene.mesh;
@@ -569,8 +580,10 @@ fn per_sample<const K: usize>(
     let samples: Vec<[Vec3; K]> = g
         .fragments
         .par_iter()
-        .map(|frag| {
-            let Some(fr) = frag else {
+        .enumerate()
+        .map(|(s, frag)| {
+            let pixel = (s / g.width / ss) * (g.width / ss) + (s % g.width) / ss;
+            let (Some(fr), true) = (frag, pixels[pixel]) else {
                 return [Vec3::ZERO; K];
             };
             let corners = mesh.indices[fr.tri as usize];
