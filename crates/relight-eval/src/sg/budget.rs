@@ -380,10 +380,10 @@ pub fn run(b: &BudgetInput) -> Result<Vec<BudgetRow>> {
     let (_, solid) = ctx.direct_texels();
     let (sin_h, cos_h) = settings.horizon_deg.to_radians().sin_cos();
     let stride = b.stride.max(1);
+    let width = scene.camera.width as usize;
     let mask: Vec<bool> = (b.mask.iter().enumerate())
         .map(|(i, &m)| {
-            m && (i % scene.camera.width as usize) % stride == 0
-                && (i / scene.camera.width as usize) % stride == 0
+            m && (i % width).is_multiple_of(stride) && (i / width).is_multiple_of(stride)
         })
         .collect();
     let [tabulated, pixel_fit, texel_fit, half_fit, half_taps, half_table] =
