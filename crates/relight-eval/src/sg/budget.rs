@@ -582,8 +582,7 @@ fn per_sample<const K: usize>(
         .par_iter()
         .enumerate()
         .map(|(s, frag)| {
-            let pixel = (s / g.width / ss) * (g.width / ss) + (s % g.width) / ss;
-            let (Some(fr), true) = (frag, pixels[pixel]) else {
+            let (Some(fr), true) = (frag, pixels[pixel_of(s, g.width, ss)]) else {
                 return [Vec3::ZERO; K];
             };
             let corners = mesh.indices[fr.tri as usize];
@@ -618,6 +617,12 @@ fn per_sample<const K: usize>(
     std::array::from_fn(img)
 }
 
+/// The pixel (row-major, `sample_width / ss` wide) holding sample `s` of a row-major sample
+/// grid `sample_width` wide with `ss x ss` samples per pixel.
+fn pixel_of(s: usize, sample_width: usize, ss: usize) -> usize {
+    (s / sample_width / ss) * (sample_width / ss) + (s % sample_width) / ss
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -630,6 +635,23 @@ mod tests {
             let s = if d.dot(sun) > 0.995 { 60.0 } else { 0.0 };
             Vec3::new(0.2, 0.3, 0.5) * (1.0 + d.y) + Vec3::splat(s)
         }))
+    }
+
+    /// `pixel_of` is the inverse of the box filter's indexing of `per_sample`: each of a
+    /// pixel's `ss^2` samples maps back to it.
+    #[test]
+    fn every_sample_of_a_pixel_maps_back_to_it() {
+        for (w, h, ss) in [(5, 3, 4), (4, 4, 1), (7, 2, 2)] {
+            let sw = w * ss;
+            for y in 0..h {
+                for x in 0..w {
+                    for q in 0..ss * ss {
+                        let s = (y * ss + q / ss) * sw + x * ss + q % ss;
+                        assert_eq!(pixel_of(s, sw, ss), y * w + x, "{w}x{h}/{ss}: sample {s}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
