@@ -166,7 +166,7 @@ pub fn sample_power_with(
 ///
 /// # Errors
 /// [`CutsError::Environment`] if a texel is NaN, infinite or negative (naming the texel), or
-/// the scale is.
+/// the scale is, or the rotation is not finite.
 pub fn sample_radiance(samples: &EnvSamples, env: &Environment) -> Result<Vec<Vec3>, CutsError> {
     sample_radiance_with(samples, &NearestSample::new(&samples.dirs), env)
 }
@@ -236,7 +236,8 @@ pub fn sample_radiance_with(
         .collect())
 }
 
-/// Refuse an environment with a NaN, infinite or negative texel or scale.
+/// Refuse an environment with a NaN, infinite or negative texel or scale, or a rotation that
+/// is not finite.
 ///
 /// # Errors
 /// [`CutsError::Environment`] naming the first bad texel (pixel index, column and row).
@@ -245,6 +246,12 @@ pub fn check_environment(env: &Environment) -> Result<(), CutsError> {
         return Err(CutsError::Environment(format!(
             "scale {} is not a finite non-negative number",
             env.scale
+        )));
+    }
+    if !env.rotate_y_deg.is_finite() {
+        return Err(CutsError::Environment(format!(
+            "rotation {} degrees is not a finite angle",
+            env.rotate_y_deg
         )));
     }
     let width = env.map.width().max(1);
@@ -462,5 +469,9 @@ mod tests {
         let mut env = Environment::new(EnvMap::constant(Vec3::ONE));
         env.scale = f32::NAN;
         assert!(sample_radiance(&s, &env).is_err());
+        let mut env = Environment::new(EnvMap::constant(Vec3::ONE));
+        env.rotate_y_deg = f32::INFINITY;
+        let msg = sample_radiance(&s, &env).unwrap_err().to_string();
+        assert!(msg.contains("not a finite angle"), "{msg}");
     }
 }
