@@ -17,9 +17,8 @@ use crate::layout::{
 use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
 use crate::{FrameStats, Gpu, GpuError, GpuFrame, GpuOutput, PrepareStats};
 use relight_bake::cuts::light_cut::LightCut;
-use relight_bake::cuts::samples::{sample_power_with, NearestSample};
 use relight_bake::cuts::visibility::CutFunction;
-use relight_method::cuts::{CutsBaked, CutsFrameSettings};
+use relight_method::cuts::{CutsBaked, CutsFrameSettings, EnvLightCut};
 use relight_method::{FrameOptions, MethodKind};
 use relight_scene::camera::Camera;
 use relight_scene::material::microfacet::PlasticTables;
@@ -43,8 +42,8 @@ pub(crate) struct CutsGpuFrame<'a> {
     bases: [u32; 3],
     /// The prepared light cut and the bind group reading it.
     prepared: Option<(LightCut, wgpu::BindGroup)>,
-    /// The nearest-sample grid of the bake's light samples, built at the first environment.
-    sample_grid: Option<NearestSample>,
+    /// The light cut of each new environment, from the samples' grid kept across them.
+    light_cut: EnvLightCut,
 }
 
 /// The GPU form of `m` (a plastic's transmittance table appended to `tables`), or why it is
@@ -231,7 +230,7 @@ impl<'a> CutsGpuFrame<'a> {
             cuts,
             bases,
             prepared: None,
-            sample_grid: None,
+            light_cut: EnvLightCut::default(),
         })
     }
 }
@@ -242,23 +241,14 @@ impl GpuFrame for CutsGpuFrame<'_> {
     }
 
     fn set_environment(&mut self, env: &Environment) -> Result<PrepareStats, GpuError> {
-        // The CPU frame's light cut (CutsFrame::set_environment), word for word.
+        // The CPU frame's light cut (`EnvLightCut`, shared).
         let t0 = Instant::now();
-        let bad = |e: relight_bake::cuts::CutsError| {
-            GpuError::Method(relight_method::MethodError::Environment(e.to_string()))
-        };
-        let b = &self.baked.bake;
-        let grid = self
-            .sample_grid
-            .get_or_insert_with(|| NearestSample::new(&b.samples.dirs));
-        let power = sample_power_with(&b.samples, grid, env).map_err(bad)?;
-        let light = LightCut::build(
-            &b.tree,
-            &power,
-            self.settings.light_sigma,
-            self.settings.light_cut,
-        )
-        .map_err(bad)?;
+        let light = self
+            .light_cut
+            .build(self.baked, &self.settings, env)
+            .map_err(|e| {
+                GpuError::Method(relight_method::MethodError::Environment(e.to_string()))
+            })?;
         let mut stats = PrepareStats {
             environment_ms: t0.elapsed().as_secs_f64() * 1e3,
             ..Default::default()

@@ -7,7 +7,7 @@ mod frame;
 pub mod local;
 mod store;
 
-pub use frame::{CutsFrame, CutsFrameSettings, MaterialOverride};
+pub use frame::{CutsFrame, CutsFrameSettings, EnvLightCut, MaterialOverride};
 pub use store::{load, store};
 
 use crate::store::{BakeRecord, BakedScene};

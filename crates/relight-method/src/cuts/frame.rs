@@ -109,9 +109,8 @@ pub struct CutsFrame<'a> {
     shader: CutsShader<'a>,
     settings: CutsFrameSettings,
     lighting: Option<(LightCut, Environment)>,
-    /// The nearest-sample grid of the bake's light samples, built at the first environment
-    /// (every later one costs the texels' pass alone, `sample_power_with`).
-    sample_grid: Option<NearestSample>,
+    /// The light cut of each new environment, from the samples' grid kept across them.
+    light_cut: EnvLightCut,
     /// Over a bake of surface samples: the shadow-ray caster, the light, its lighting.
     local: Option<LocalState>,
 }
@@ -212,7 +211,7 @@ impl<'a> CutsFrame<'a> {
             .with_cluster_spread(s.cluster_spread),
             settings: s.clone(),
             lighting: None,
-            sample_grid: None,
+            light_cut: EnvLightCut::default(),
             local,
         })
     }
@@ -253,6 +252,41 @@ impl<'a> CutsFrame<'a> {
     }
 }
 
+/// The light cut of a bake under an environment (sec. 3.2, 4.2), as the CPU frame and the GPU
+/// frame (`relight_gpu`) build it: the light samples' power, then the cut. The samples'
+/// nearest-sample grid is built at the first environment and kept, so every later
+/// environment or rotation costs the texels' pass alone (`sample_power_with`).
+#[derive(Default)]
+pub struct EnvLightCut {
+    grid: Option<NearestSample>,
+}
+
+impl EnvLightCut {
+    /// The light cut of `baked` under `env` with `settings`' budget and sigma.
+    ///
+    /// # Errors
+    /// A bad environment (NaN, infinite or negative texels or scale, a rotation that is not
+    /// finite) or bad settings, as `sample_power_with` and `LightCut::build` say.
+    pub fn build(
+        &mut self,
+        baked: &CutsBaked,
+        settings: &CutsFrameSettings,
+        env: &Environment,
+    ) -> Result<LightCut, relight_bake::cuts::CutsError> {
+        let samples = &baked.bake.samples;
+        let grid = self
+            .grid
+            .get_or_insert_with(|| NearestSample::new(&samples.dirs));
+        let power = sample_power_with(samples, grid, env)?;
+        LightCut::build(
+            &baked.bake.tree,
+            &power,
+            settings.light_sigma,
+            settings.light_cut,
+        )
+    }
+}
+
 /// Whether `env` sends no light (scale 0 or every texel black).
 fn is_black(env: &Environment) -> bool {
     env.scale == 0.0
@@ -277,21 +311,12 @@ impl Frame for CutsFrame<'_> {
             return self.set_point_light(light);
         }
         let t0 = Instant::now();
-        let samples = &self.baked.bake.samples;
-        let bad = |e: relight_bake::cuts::CutsError| MethodError::Environment(e.to_string());
-        let grid = self
-            .sample_grid
-            .get_or_insert_with(|| NearestSample::new(&samples.dirs));
-        let power = sample_power_with(samples, grid, env).map_err(bad)?;
+        let light = self
+            .light_cut
+            .build(self.baked, &self.settings, env)
+            .map_err(|e| MethodError::Environment(e.to_string()))?;
         let environment_ms = ms_since(t0);
         let t1 = Instant::now();
-        let light = LightCut::build(
-            &self.baked.bake.tree,
-            &power,
-            self.settings.light_sigma,
-            self.settings.light_cut,
-        )
-        .map_err(bad)?;
         // Every vertex's cut merged with the light cut (the frame's corner lists), camera-
         // and material-independent: here rather than in the first frame.
         self.shader.prepare(&light);
