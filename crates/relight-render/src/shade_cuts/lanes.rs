@@ -1,9 +1,12 @@
 //! The per-fragment sums of `shade_cuts::triangle` (and of the local-light bounce,
 //! `crate::shade_local`) over [`LANES`]-wide groups of merged clusters, written so the compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]`
-//! groups, no branch (masks become selects), and one body compiled twice, for the portable
-//! target and with AVX2 + FMA enabled (chosen at run time with `is_x86_feature_detected!`,
-//! like `shade_sh::avx2`). Rust never fuses a multiply and an add on its own, so the two
-//! builds give the same bits.
+//! groups, no branch (masks become selects), and one body compiled three times: for the
+//! portable target, with AVX2 + FMA, and with AVX-512 (F + VL) as well, chosen at run time
+//! ([`Isa`]). The AVX-512 build still works on 8-lane (256-bit) groups; what it gains is 32
+//! vector registers instead of 16, so the five-point rule's terms of the glossy sums stay in
+//! registers instead of spilling (the plastic's lanes 12 % faster on a Zen 4, `docs/RESULTS.md`
+//! §11). Rust never fuses a multiply and an add on its own, so the three builds give the same
+//! bits.
 //!
 //! Layout: structure-of-arrays, each array a whole number of groups (zero clusters pad the
 //! last one; they add `0`).
@@ -43,14 +46,23 @@ pub(crate) struct GgxFragment {
 /// fragment-constant factors (the caller's `TriangleCut::ggx_sum`), where `F_k` is
 /// [`ggx_term`] at the cluster's direction `mu_k`, or with the spread the five-point rule's
 /// mean of it over `mu_k` and `mu_k cos theta_p +- sin theta_p s_k`, `+- sin theta_p t_k`
-/// (`s_k, t_k` the `relight_sphere::warp::Frame` of `mu_k`, branch-free, so built in the
-/// lanes): `LightCut::spread_average`'s directions.
+/// (`s_k, t_k` the `relight_sphere::warp::Frame` of `mu_k`): `LightCut::spread_average`'s
+/// directions. A term needs only `n . w` and `|v + w|^2` ([`ring_terms`]).
 pub(crate) fn ggx(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has AVX2 and FMA (just checked).
-        return unsafe { ggx_avx2(g, f) };
+    match Isa::detect() {
+        // SAFETY: the CPU has the build's features (`Isa::detect`).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { ggx_avx512(g, f) },
+        // SAFETY: as above.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { ggx_avx2(g, f) },
+        _ => ggx_body(g, f),
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn ggx_avx512(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
     ggx_body(g, f)
 }
 
@@ -62,8 +74,39 @@ fn ggx_avx2(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
 
 #[inline(always)]
 fn ggx_body(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
-    let [sum] = spread_sums(g, f.b, |x, y, z| [ggx_term(f, x, y, z)]);
+    let (a2, nv) = (f.a2, f.n.dot(f.v));
+    let [sum] = spread_sums(g, f, |co, hh| [ggx_term(a2, nv, co, hh)]);
     sum
+}
+
+/// The vector build of the lanes this CPU runs (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// AVX2, FMA, AVX-512F and AVX-512VL.
+    Avx512,
+    /// AVX2 and FMA.
+    Avx2,
+    /// The target's baseline.
+    Portable,
+}
+
+impl Isa {
+    /// The widest build this CPU runs (`is_x86_feature_detected!` caches its answer).
+    #[inline]
+    pub(crate) fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::is_x86_feature_detected as has;
+            if has!("avx2") && has!("fma") {
+                return if has!("avx512f") && has!("avx512vl") {
+                    Isa::Avx512
+                } else {
+                    Isa::Avx2
+                };
+            }
+        }
+        Isa::Portable
+    }
 }
 
 /// The fragment-constant part of the GGX plastic's sums ([`plastic`]).
@@ -85,12 +128,21 @@ pub(crate) struct PlasticFragment<'a> {
 /// (the table's linear interpolation, `PlasticTables::transmittance`) at each cluster's
 /// direction `mu_k` alone (`LightCut::spread_lobes`).
 pub(crate) fn plastic(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
-    #[cfg(target_arch = "x86_64")]
-    if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU has AVX2 and FMA (just checked).
-        return unsafe { plastic_avx2(g, f) };
+    match Isa::detect() {
+        // SAFETY: the CPU has the build's features (`Isa::detect`).
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { plastic_avx512(g, f) },
+        // SAFETY: as above.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { plastic_avx2(g, f) },
+        _ => plastic_body::<false>(g, f),
     }
-    plastic_body::<false>(g, f)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn plastic_avx512(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+    plastic_body::<true>(g, f)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -99,21 +151,22 @@ fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     plastic_body::<true>(g, f)
 }
 
-/// The plastic's sums; `GATHER` (only from [`plastic_avx2`]) looks the table up with AVX2
+/// The plastic's sums; `GATHER` (only from [`plastic_avx2`] and [`plastic_avx512`]) looks the table up with AVX2
 /// gathers.
 #[inline(always)]
 fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
-    let n = gf.n;
     debug_assert!(
         eta > 1.0,
         "a plastic's coating has ior > 1 (Material::validate)"
     );
     let e1 = eta * eta - 1.0;
-    let [spec] = spread_sums(g, gf.b, |x, y, z| {
-        let g = ggx_ratio(gf, x, y, z);
-        // The coating's Fresnel reflectance at `cos_i = v . h / |h|`: for unit `v` and `w`,
-        // `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i^2 = |h|^2 / 4`.
+    let (a2, nv) = (gf.a2, gf.n.dot(gf.v));
+    let t = f.transmittance;
+    let [spec] = spread_sums(g, gf, |co, hh| {
+        let g = ggx_ratio(a2, nv, co, hh);
+        // The coating's Fresnel reflectance at `cos_i = v . h / |h|`: for unit `v` and
+        // `w`, `v . h = 1 + v . w = |h|^2 / 2`, so `cos_i^2 = |h|^2 / 4`.
         let [num, den] = fresnel_ratio(0.25 * g.hh, e1);
         // The GGX term and the reflectance over one division ([`ggx_ratio`]).
         let y = g.num * num / (g.den * den);
@@ -121,8 +174,9 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
     });
     // The diffuse lobe at each cluster's direction alone, spread or not
     // (`LightCut::spread_lobes`): `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the
-    // table's lookup, a gather).
-    let t = f.transmittance;
+    // table's lookup, a gather). A pass of its own: in the specular pass's loop, its lanes
+    // spill (measured slower).
+    let n = gf.n;
     let diff = groups_sum_post(
         g,
         gf.b,
@@ -206,17 +260,17 @@ fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
     }
 }
 
-/// `G1(w) / s^2` of unit direction `w = (x, y, z)` (`h = v + w`),
-/// `0` unless `n . w > 0` and `n . h > 0`: `c^2 = (n . h)^2 / |h|^2`,
-/// `s = (1 - c^2) / a^2 + c^2` (`D = 1 / (pi a^2 s^2)`) and
-/// `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))`, `c_w = n . w` (height-separable
-/// Smith, `relight_scene::material::microfacet`). Computed with one division and one square
-/// root (the five of the definition dominated the lanes): with `t = |h|^2 - (n . h)^2
-/// (1 - a^2) = a^2 |h|^2 s` and `q = c_w^2 + a^2 max(0, 1 - c_w^2) = c_w^2 (1 + tan^2)`,
+/// `G1(w) / s^2` of a unit direction `w` given by `c_w = n . w` and `|h|^2`
+/// (`h = v + w`; `nv = n . v`), `0` unless `n . w > 0` and `n . h > 0`:
+/// `c^2 = (n . h)^2 / |h|^2`, `s = (1 - c^2) / a^2 + c^2` (`D = 1 / (pi a^2 s^2)`) and
+/// `G1(w) = 2 / (1 + sqrt(1 + a^2 (1 - c_w^2) / c_w^2))` (height-separable Smith,
+/// `relight_scene::material::microfacet`). Computed with one division and one square root
+/// (the five of the definition dominated the lanes): with `t = |h|^2 - (n . h)^2 (1 - a^2)
+/// = a^2 |h|^2 s` and `q = c_w^2 + a^2 max(0, 1 - c_w^2) = c_w^2 (1 + tan^2)`,
 /// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`.
 #[inline(always)]
-fn ggx_term(f: &GgxFragment, x: f32, y: f32, z: f32) -> f32 {
-    let g = ggx_ratio(f, x, y, z);
+fn ggx_term(a2: f32, nv: f32, co: f32, hh: f32) -> f32 {
+    let g = ggx_ratio(a2, nv, co, hh);
     let y = g.num / g.den;
     if g.lit {
         y
@@ -238,14 +292,13 @@ struct GgxRatio {
 }
 
 /// [`ggx_term`]'s ratio, undivided, so that a caller multiplying it by another ratio
-/// divides once (the plastic's Fresnel), with `|h|^2` and the mask.
+/// divides once (the plastic's Fresnel), with `|h|^2` and the mask, from `c_w = n . w` and
+/// `|h|^2`: `n . h = n . v + n . w` (a sum of positive terms where the term counts). `|h|^2`
+/// is the caller's, from the vector `h` itself: from the dot products (`2 (1 + v . w)`) it
+/// cancels at grazing angles, where `h` is short (2 % off at `n . v = 0.01`).
 #[inline(always)]
-fn ggx_ratio(f: &GgxFragment, x: f32, y: f32, z: f32) -> GgxRatio {
-    let (n, v, a2) = (f.n, f.v, f.a2);
-    let h = [v.x + x, v.y + y, v.z + z];
-    let hn = n.x * h[0] + n.y * h[1] + n.z * h[2];
-    let hh = h[0] * h[0] + h[1] * h[1] + h[2] * h[2];
-    let co = n.x * x + n.y * y + n.z * z;
+fn ggx_ratio(a2: f32, nv: f32, co: f32, hh: f32) -> GgxRatio {
+    let hn = nv + co;
     let co2 = co * co;
     let t = hh - hn * hn * (1.0 - a2);
     let q = co2 + a2 * (1.0 - co2).max(0.0);
@@ -258,60 +311,62 @@ fn ggx_ratio(f: &GgxFragment, x: f32, y: f32, z: f32) -> GgxRatio {
     }
 }
 
-/// `sum_k power_k (b . vis_k) term_k` for each of the `K` outputs of `term` (a function of a
-/// unit direction), `term_k` at the cluster's direction or, where `g.ring_cos` is given, the
-/// five-point rule's mean ([`ggx`]).
+/// `sum_k power_k (b . vis_k) term_k` for each of the `K` outputs of `term` (a function of
+/// `n . w` and `|v + w|^2` of a unit direction `w`), `term_k` at the cluster's direction
+/// `mu_k` or, where `g.ring_cos` is given, the five-point rule's mean ([`ggx`]).
 #[inline(always)]
 fn spread_sums<const K: usize>(
     g: &Groups<'_>,
-    b: [f32; 3],
-    term: impl Fn(f32, f32, f32) -> [f32; K],
+    f: &GgxFragment,
+    term: impl Fn(f32, f32) -> [f32; K],
 ) -> [Vec3; K] {
     match g.ring_cos {
-        None => groups_sum::<false, K>(g, &[], b, term),
-        Some(c) => groups_sum::<true, K>(g, c, b, term),
+        None => groups_sum::<false, K>(g, &[], f, term),
+        Some(c) => groups_sum::<true, K>(g, c, f, term),
     }
 }
 
-/// The four directions of the five-point rule around unit `mu = (mx, my, mz)` at
-/// `cos theta_p = c` ([`relight_bake::cuts::light_cut::LightCut::spread_average`]):
-/// `relight_sphere::warp::Frame::from_normal(mu)` (branch-free), then
-/// `mu c +- s sin theta_p`, `mu c +- t sin theta_p`.
+/// `term` at the four directions of the five-point rule around unit `mu = (mx, my, mz)` at
+/// `cos theta_p = c` ([`relight_bake::cuts::light_cut::LightCut::spread_average`]),
+/// `w = mu c +- p` and `mu c +- q` with `p = s sin theta_p`, `q = t sin theta_p`, `(s, t)` of
+/// `relight_sphere::warp::Frame::from_normal(mu)` (branch-free), given `nm = n . mu`: each
+/// `n . w = c nm +- n . p` (or `q`), and `h = u +- p` with `u = v + c mu`. Indexed, not
+/// `array::map`, whose closure is not inlined into the AVX2 build (6x slower frames).
 #[inline(always)]
-fn ring(mx: f32, my: f32, mz: f32, c: f32) -> [(f32, f32, f32); 4] {
+fn ring_terms<const K: usize>(
+    term: &impl Fn(f32, f32) -> [f32; K],
+    f: &GgxFragment,
+    (mx, my, mz): (f32, f32, f32),
+    nm: f32,
+    c: f32,
+) -> [[f32; K]; 4] {
+    let (n, v) = (f.n, f.v);
     let sn = (1.0 - c * c).max(0.0).sqrt();
     let sign = 1.0f32.copysign(mz);
     let a = -1.0 / (sign + mz);
     let bb = mx * my * a;
-    let (sx, sy, sz) = (1.0 + sign * mx * mx * a, sign * bb, -sign * mx);
-    let (tx, ty, tz) = (bb, sign + my * my * a, -my);
-    let (cx, cy, cz) = (mx * c, my * c, mz * c);
-    let (px, py, pz) = (sx * sn, sy * sn, sz * sn);
-    let (qx, qy, qz) = (tx * sn, ty * sn, tz * sn);
+    let p = [
+        (1.0 + sign * mx * mx * a) * sn,
+        sign * bb * sn,
+        -sign * mx * sn,
+    ];
+    let q = [bb * sn, (sign + my * my * a) * sn, -my * sn];
+    let u = [v.x + mx * c, v.y + my * c, v.z + mz * c];
+    let (np, nq, cn) = (
+        n.x * p[0] + n.y * p[1] + n.z * p[2],
+        n.x * q[0] + n.y * q[1] + n.z * q[2],
+        c * nm,
+    );
+    // `|u + sign d|^2` for `d = p` or `q`.
+    let hh = |d: [f32; 3], sign: f32| {
+        let h = [u[0] + sign * d[0], u[1] + sign * d[1], u[2] + sign * d[2]];
+        h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
+    };
     [
-        (cx + px, cy + py, cz + pz),
-        (cx - px, cy - py, cz - pz),
-        (cx + qx, cy + qy, cz + qz),
-        (cx - qx, cy - qy, cz - qz),
-    ]
-}
-
-/// `term` at the four directions of the five-point rule around `mu` ([`ring`]). Indexed, not
-/// `array::map`, whose closure is not inlined into the AVX2 build (6x slower frames).
-#[inline(always)]
-fn ring_terms<const K: usize>(
-    term: &impl Fn(f32, f32, f32) -> [f32; K],
-    mx: f32,
-    my: f32,
-    mz: f32,
-    c: f32,
-) -> [[f32; K]; 4] {
-    let d = ring(mx, my, mz, c);
-    [
-        term(d[0].0, d[0].1, d[0].2),
-        term(d[1].0, d[1].1, d[1].2),
-        term(d[2].0, d[2].1, d[2].2),
-        term(d[3].0, d[3].1, d[3].2),
+        term(cn + np, hh(p, 1.0)),
+        term(cn - np, hh(p, -1.0)),
+        term(cn + nq, hh(q, 1.0)),
+        term(cn - nq, hh(q, -1.0)),
     ]
 }
 
@@ -334,15 +389,17 @@ fn add_group<const K: usize>(
     }
 }
 
+/// [`spread_sums`] for one kind of cluster list.
 // Indexed loops over parallel arrays: the shape the vectoriser handles.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn groups_sum<const SPREAD: bool, const K: usize>(
     g: &Groups<'_>,
     ring_cos: &[[f32; LANES]],
-    b: [f32; 3],
-    term: impl Fn(f32, f32, f32) -> [f32; K],
+    f: &GgxFragment,
+    term: impl Fn(f32, f32) -> [f32; K],
 ) -> [Vec3; K] {
+    let (b, n, v) = (f.b, f.n, f.v);
     let groups = g.dir[0].len();
     let mut acc = [[[0.0f32; LANES]; 3]; K];
     for i in 0..groups {
@@ -352,10 +409,12 @@ fn groups_sum<const SPREAD: bool, const K: usize>(
         let mut x = [[0.0f32; LANES]; K];
         for l in 0..LANES {
             let (mx, my, mz) = (dx[l], dy[l], dz[l]);
-            let mut y = term(mx, my, mz);
+            let nm = n.x * mx + n.y * my + n.z * mz;
+            let h = [v.x + mx, v.y + my, v.z + mz];
+            let mut y = term(nm, h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
             if SPREAD {
                 let c = rc[l];
-                let r = ring_terms(&term, mx, my, mz, c);
+                let r = ring_terms(&term, f, (mx, my, mz), nm, c);
                 // One evaluation where the rule is off (`c == 1`: the ring is `mu` itself).
                 for k in 0..K {
                     let ring = r[0][k] + r[1][k] + r[2][k] + r[3][k];
@@ -521,14 +580,19 @@ mod tests {
         }
     }
 
-    /// The AVX2 build gives the portable build's bits (Rust fuses no multiply-add itself).
+    /// The AVX2 and AVX-512 builds give the portable build's bits (Rust fuses no
+    /// multiply-add itself).
     #[test]
-    fn avx2_lanes_equal_the_portable_lanes_conductor_and_plastic() {
+    fn vector_lanes_equal_the_portable_lanes_conductor_and_plastic() {
         #[cfg(target_arch = "x86_64")]
         {
-            if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+            let isa = Isa::detect();
+            if isa == Isa::Portable {
                 println!("skipped: this CPU has no AVX2 + FMA");
                 return;
+            }
+            if isa == Isa::Avx2 {
+                println!("the AVX-512 build not checked: this CPU has no AVX-512F + VL");
             }
             let (power, vis, dir, ring) = data();
             let f = GgxFragment {
@@ -537,6 +601,12 @@ mod tests {
                 v: Vec3::new(-0.2, 0.7, 0.6).normalize(),
                 a2: 0.04,
             };
+            let tables = PlasticTables::get(0.2, 1.5);
+            let p = PlasticFragment {
+                ggx: f,
+                ior: 1.5,
+                transmittance: &tables.external_transmittance,
+            };
             for spread in [false, true] {
                 let g = Groups {
                     power: power.each_ref().map(|x| x.as_slice()),
@@ -544,24 +614,17 @@ mod tests {
                     dir: dir.each_ref().map(|x| x.as_slice()),
                     ring_cos: spread.then_some(ring.as_slice()),
                 };
-                // SAFETY: AVX2 and FMA checked above.
-                let fast = unsafe { ggx_avx2(&g, &f) };
-                assert_eq!(fast, ggx_body(&g, &f), "spread {spread}");
-                assert!(fast.min_element() > 0.0, "{fast}");
-                let tables = PlasticTables::get(0.2, 1.5);
-                let p = PlasticFragment {
-                    ggx: f,
-                    ior: 1.5,
-                    transmittance: &tables.external_transmittance,
-                };
-                // SAFETY: as above.
-                let fast = unsafe { plastic_avx2(&g, &p) };
-                assert_eq!(
-                    fast,
-                    plastic_body::<false>(&g, &p),
-                    "plastic, spread {spread}"
-                );
-                assert!(fast[0].min_element() > 0.0 && fast[1].min_element() > 0.0);
+                let (slow, slow_plastic) = (ggx_body(&g, &f), plastic_body::<false>(&g, &p));
+                assert!(slow.min_element() > 0.0, "{slow}");
+                assert!(slow_plastic[0].min_element() > 0.0 && slow_plastic[1].min_element() > 0.0);
+                // SAFETY: AVX2 and FMA checked above (`Isa::detect`).
+                let fast = unsafe { (ggx_avx2(&g, &f), plastic_avx2(&g, &p)) };
+                assert_eq!(fast, (slow, slow_plastic), "AVX2, spread {spread}");
+                if isa == Isa::Avx512 {
+                    // SAFETY: AVX-512F and VL checked above.
+                    let fast = unsafe { (ggx_avx512(&g, &f), plastic_avx512(&g, &p)) };
+                    assert_eq!(fast, (slow, slow_plastic), "AVX-512, spread {spread}");
+                }
             }
         }
     }
