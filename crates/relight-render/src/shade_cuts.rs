@@ -407,13 +407,16 @@ impl<'a> CutsShader<'a> {
         eye: Vec3,
         out: &mut [Vec3],
     ) {
+        // The Lambert sums per corner, once per triangle when a fragment needs them.
+        let sums = std::cell::OnceCell::new();
         self.shade_fragments(tri, fs, eye, out, |f, material, n, view| {
             let b = f.bary;
             match (*material.material(), self.function) {
                 // eval / cos = albedo / pi for every cluster: the sum factors per corner
                 // (the sums are those of whole clusters, spread or not).
                 (Material::Lambert { albedo }, CutFunction::VisibilityCosine) => {
-                    albedo * FRAC_1_PI * (t.sums[0] * b[0] + t.sums[1] * b[1] + t.sums[2] * b[2])
+                    let s = sums.get_or_init(|| t.corner_sums());
+                    albedo * FRAC_1_PI * (s[0] * b[0] + s[1] * b[1] + s[2] * b[2])
                 }
                 // A fragment whose maps changed whether it spreads (rare): the reference.
                 _ if self.spreads(material) != t.spread => self.shade_fragment(light, f, eye),

@@ -40,8 +40,6 @@ pub(super) struct TriangleCut {
     ring_cos: Vec<f32>,
     /// The cluster's tree node (post-order index; [`LightCut::spread_average`]).
     node: Vec<u32>,
-    /// `sum_k power_k vis_k[j]` per corner (the Lambert sum without a per-cluster BRDF).
-    pub(super) sums: [Vec3; 3],
     /// Clusters of this triangle, padding included (the arrays may be longer).
     len: usize,
     /// Whether built for the cluster spread (module docs).
@@ -75,8 +73,8 @@ impl TriangleCut {
             cuts[1].into(),
             cuts[2].into(),
         ];
+        let mut out = self.columns();
         let mut n = 0;
-        let mut sums = [Vec3::ZERO; 3];
         merge_cuts(keys, |node, pos| {
             let q = [
                 cuts[0].value[pos[1]],
@@ -95,10 +93,10 @@ impl TriangleCut {
                     1.0
                 },
             };
-            self.push(n, node.index, power, q, info, &mut sums);
+            out.put(n, node.index, power, q, info);
             n += 1;
         });
-        self.finish(n, sums);
+        self.finish(n);
     }
 
     /// Triangle `tri`'s visibility union into `record` (cleared first): the traversal of
@@ -136,38 +134,28 @@ impl TriangleCut {
     ) {
         // A merged cluster is a union cluster or a light-cut node inside one.
         self.begin(spread, union.len() + light.len());
+        let mut out = self.columns();
         let mut n = 0;
-        let mut sums = [Vec3::ZERO; 3];
         for c in union {
             // The light-cut node holding the cluster's leftmost leaf (every cut partitions
             // the leaves): the cluster itself or an ancestor (post-order index at least the
             // cluster's: the merged cluster is the union's), else the first of the light-cut
             // nodes inside the cluster (the merged clusters are those, up to its index).
             let mut p = tables.cover[c.leftleaf as usize] as usize;
-            let covered = light.index[p] >= c.node;
+            if light.index[p] >= c.node {
+                n += out.lit(light, tables, spread, n, (c.node, c.leftleaf), p, c.vis);
+                continue;
+            }
             loop {
-                let (node, leftleaf) = if covered {
-                    (c.node, c.leftleaf)
-                } else {
-                    (light.index[p], light.leftleaf[p])
-                };
-                // `|C'|` as `MergedNode::leaves` (exact in f32 below 2^24 lights).
-                let power = light.value[p] * ((node - leftleaf) / 2 + 1) as f32;
-                if power != Vec3::ZERO {
-                    let mut info = tables.nodes[node as usize];
-                    if !spread {
-                        info.ring_cos = 1.0;
-                    }
-                    self.push(n, node, power, c.vis, info, &mut sums);
-                    n += 1;
-                }
+                let node = (light.index[p], light.leftleaf[p]);
+                n += out.lit(light, tables, spread, n, node, p, c.vis);
                 p += 1;
-                if covered || p == light.len() || light.index[p] > c.node {
+                if p == light.len() || light.index[p] > c.node {
                     break;
                 }
             }
         }
-        self.finish(n, sums);
+        self.finish(n);
     }
 
     /// Start a merged cut of at most `clusters` clusters, for the spread if `spread`.
@@ -176,26 +164,18 @@ impl TriangleCut {
         self.reserve(clusters);
     }
 
-    /// Write cluster `n`: tree node `node`, `power = |C'| <L O>`, quantised visibility
-    /// means `q`, direction and rule `info`; its share of the Lambert `sums`.
-    #[inline(always)]
-    fn push(
-        &mut self,
-        n: usize,
-        node: u32,
-        power: Vec3,
-        q: [u16; 3],
-        info: NodeInfo,
-        sums: &mut [Vec3; 3],
-    ) {
-        self.node[n] = node;
-        self.ring_cos[n] = info.ring_cos;
-        for j in 0..3 {
-            let v = dequantise(q[j]);
-            sums[j] += power * v;
-            self.vis[j][n] = v;
-            self.power[j][n] = power[j];
-            self.dir[j][n] = info.dir[j];
+    /// The arrays, each cut to the room reserved (so one bound check covers a cluster).
+    fn columns(&mut self) -> Columns<'_> {
+        fn cut(a: &mut [Vec<f32>; 3], bound: usize) -> [&mut [f32]; 3] {
+            a.each_mut().map(|x| &mut x[..bound])
+        }
+        let bound = self.node.len();
+        Columns {
+            node: &mut self.node[..bound],
+            ring_cos: &mut self.ring_cos[..bound],
+            power: cut(&mut self.power, bound),
+            vis: cut(&mut self.vis, bound),
+            dir: cut(&mut self.dir, bound),
         }
     }
 
@@ -211,9 +191,8 @@ impl TriangleCut {
         }
     }
 
-    /// `n` clusters written, their `sums`: pad the last lane group with zero clusters.
-    fn finish(&mut self, n: usize, sums: [Vec3; 3]) {
-        self.sums = sums;
+    /// `n` clusters written: pad the last lane group with zero clusters.
+    fn finish(&mut self, n: usize) {
         self.len = n.next_multiple_of(LANES);
         for a in [&mut self.power, &mut self.vis, &mut self.dir] {
             a.iter_mut().for_each(|x| x[n..self.len].fill(0.0));
@@ -243,7 +222,20 @@ impl TriangleCut {
                 ]
             })
             .collect();
-        (clusters, self.sums, self.spread)
+        (clusters, self.corner_sums(), self.spread)
+    }
+
+    /// `sum_k power_k vis_k[j]` per corner `j` (the Lambert sum without a per-cluster BRDF),
+    /// in the clusters' order (the zero clusters of the padding add `+0`).
+    pub(super) fn corner_sums(&self) -> [Vec3; 3] {
+        let mut sums = [Vec3::ZERO; 3];
+        for k in 0..self.len {
+            let power = Vec3::new(self.power[0][k], self.power[1][k], self.power[2][k]);
+            for (j, sum) in sums.iter_mut().enumerate() {
+                *sum += power * self.vis[j][k];
+            }
+        }
+        sums
     }
 
     /// Cluster `k`'s power, visibility interpolated with `b`, direction and tree node.
@@ -321,6 +313,62 @@ impl TriangleCut {
             ring_cos: self
                 .spread
                 .then(|| self.ring_cos[..self.len].as_chunks::<LANES>().0),
+        }
+    }
+}
+
+/// [`TriangleCut`]'s arrays while a merged cut is written, all of one length.
+struct Columns<'a> {
+    node: &'a mut [u32],
+    ring_cos: &'a mut [f32],
+    power: [&'a mut [f32]; 3],
+    vis: [&'a mut [f32]; 3],
+    dir: [&'a mut [f32]; 3],
+}
+
+impl Columns<'_> {
+    /// Write cluster `n` of a pass over a record (`TriangleCut::walk`): tree node `node`
+    /// (with its leftmost leaf) lit by light-cut node `p` (`tables` those of `light`), with
+    /// the union's visibility `q`, unless `p` holds no light. Returns the clusters written
+    /// (0 or 1). `|C'|` as `MergedNode::leaves` (exact in f32 below 2^24 lights).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn lit(
+        &mut self,
+        light: &LightCut,
+        tables: &LightTables,
+        spread: bool,
+        n: usize,
+        (node, leftleaf): (u32, u32),
+        p: usize,
+        q: [u16; 3],
+    ) -> usize {
+        let power = light.value[p] * ((node - leftleaf) / 2 + 1) as f32;
+        if power == Vec3::ZERO {
+            return 0;
+        }
+        let mut info = tables.nodes[node as usize];
+        if !spread {
+            info.ring_cos = 1.0;
+        }
+        self.put(n, node, power, q, info);
+        1
+    }
+
+    /// Write cluster `n`: tree node `node`, `power = |C'| <L O>`, quantised visibility
+    /// means `q`, direction and rule `info`.
+    #[inline(always)]
+    fn put(&mut self, n: usize, node: u32, power: Vec3, q: [u16; 3], info: NodeInfo) {
+        assert!(
+            n < self.node.len(),
+            "a merged cut longer than its four cuts"
+        );
+        self.node[n] = node;
+        self.ring_cos[n] = info.ring_cos;
+        for j in 0..3 {
+            self.vis[j][n] = dequantise(q[j]);
+            self.power[j][n] = power[j];
+            self.dir[j][n] = info.dir[j];
         }
     }
 }
