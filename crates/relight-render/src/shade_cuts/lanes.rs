@@ -76,7 +76,8 @@ fn ggx_avx2(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
 fn ggx_body(g: &Groups<'_>, f: &GgxFragment) -> Vec3 {
     let (a2, nv) = (f.a2, f.n.dot(f.v));
     let [sum] = spread_sums(g, f, |co, hh| [ggx_term(a2, nv, co, hh)]);
-    sum
+    // The terms' constant factor ([`ggx_ratio`]), once.
+    sum * (2.0 * a2 * a2)
 }
 
 /// The vector build of the lanes this CPU runs (module docs).
@@ -135,26 +136,26 @@ pub(crate) fn plastic(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
         // SAFETY: as above.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 => unsafe { plastic_avx2(g, f) },
-        _ => plastic_body::<false>(g, f),
+        _ => plastic_body::<LOOKUP_LOADS>(g, f),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 fn plastic_avx512(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
-    plastic_body::<true>(g, f)
+    plastic_body::<LOOKUP_PERMUTE>(g, f)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn plastic_avx2(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
-    plastic_body::<true>(g, f)
+    plastic_body::<LOOKUP_GATHER>(g, f)
 }
 
-/// The plastic's sums; `GATHER` (only from [`plastic_avx2`] and [`plastic_avx512`]) looks the table up with AVX2
-/// gathers.
+/// The plastic's sums; `LOOKUP` says how the transmittance table is read
+/// ([`cos_transmittance`]).
 #[inline(always)]
-fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
+fn plastic_body<const LOOKUP: u8>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> [Vec3; 2] {
     let (gf, eta) = (&f.ggx, f.ior);
     debug_assert!(
         eta > 1.0,
@@ -172,6 +173,8 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
         let y = g.num * num / (g.den * den);
         [if g.lit { y } else { 0.0 }]
     });
+    // The terms' constant factors ([`ggx_ratio`], [`fresnel_ratio`]), once.
+    let spec = spec * (a2 * a2 * e1 * e1);
     // The diffuse lobe at each cluster's direction alone, spread or not
     // (`LightCut::spread_lobes`): `n . w`, then `max(0, n . w) t(n . w)` over the lanes (the
     // table's lookup, a gather). A pass of its own: in the specular pass's loop, its lanes
@@ -181,7 +184,7 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
         g,
         gf.b,
         |x, y, z| n.x * x + n.y * y + n.z * z,
-        |co| cos_transmittance::<GATHER>(t, co),
+        |co| cos_transmittance::<LOOKUP>(t, co),
     );
     [spec, diff]
 }
@@ -194,27 +197,40 @@ fn plastic_body<const GATHER: bool>(g: &Groups<'_>, f: &PlasticFragment<'_>) -> 
 /// 2 g c` (a sum of non-negative terms: no cancellation), and `rp^2 = rs^2 X^2` with
 /// `X = (g c + c^2 - 1) / (g c - c^2 + 1)` (Cook and Torrance 1982's form), so
 /// `F = e1^2 (N^2 + D^2) / (2 Q^2 D^2)`, `D = g c - c^2 + 1 >= 1 - c^2 + g c > 0`; only
-/// `g c = sqrt(c^2 (e1 + c^2))` needs a root.
+/// `g c = sqrt(c^2 (e1 + c^2))` needs a root. Without the constant factor `e1^2 / 2`
+/// (the caller's, once per sum): `F = e1^2 / 2 num / den`.
 #[inline(always)]
 fn fresnel_ratio(c2: f32, e1: f32) -> [f32; 2] {
     let gc = (c2 * (e1 + c2)).sqrt();
     let q = e1 + 2.0 * (c2 + gc);
     let (nn, dd) = (gc + c2 - 1.0, gc - c2 + 1.0);
-    [e1 * e1 * (nn * nn + dd * dd), 2.0 * (q * q) * (dd * dd)]
+    let qd = q * dd;
+    [nn * nn + dd * dd, qd * qd]
 }
+
+/// How [`cos_transmittance`] reads its table: the portable loop's loads.
+const LOOKUP_LOADS: u8 = 0;
+/// AVX2 gathers ([`cos_transmittance_avx2`]).
+const LOOKUP_GATHER: u8 = 1;
+/// AVX-512 two-table permutes ([`cos_transmittance_avx512`]).
+const LOOKUP_PERMUTE: u8 = 2;
 
 /// `max(0, c) t(c)` for each cosine `c` of `co`, `t(c)` the linear interpolation of the
 /// table `t` of `relight_scene::material::microfacet::PlasticTables::transmittance` (the
-/// same arithmetic as its lookup, in the lanes). With `GATHER` (AVX2 builds only) its two
-/// reads are AVX2 gathers, which the vectoriser does not emit on its own; the results are
-/// the same bits.
+/// same arithmetic as its lookup, in the lanes). The vectoriser does not emit the table's
+/// reads on its own: with [`LOOKUP_GATHER`] (AVX2 builds) they are gathers, with
+/// [`LOOKUP_PERMUTE`] (AVX-512 builds) permutes of the table held in registers (on a Zen 4
+/// the gathers were a seventh of the plastic's lanes); the results are the same bits.
 #[inline(always)]
-fn cos_transmittance<const GATHER: bool>(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
+fn cos_transmittance<const LOOKUP: u8>(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
     #[cfg(target_arch = "x86_64")]
-    if GATHER {
-        // SAFETY: `GATHER` is set only by `plastic_avx2`, run after the CPU's check.
-        unsafe { cos_transmittance_avx2(t, co) };
-        return;
+    match LOOKUP {
+        // SAFETY: `LOOKUP_GATHER` is set only by `plastic_avx2` and `LOOKUP_PERMUTE` only by
+        // `plastic_avx512`, each run after the CPU's check (`Isa::detect`).
+        LOOKUP_GATHER => return unsafe { cos_transmittance_avx2(t, co) },
+        // SAFETY: as above.
+        LOOKUP_PERMUTE => return unsafe { cos_transmittance_avx512(t, co) },
+        _ => {}
     }
     for c in co.iter_mut() {
         let fi = c.clamp(0.0, 1.0) * (TABLE_RES - 1) as f32;
@@ -231,9 +247,63 @@ fn cos_transmittance<const GATHER: bool>(t: &[f32; TABLE_RES], co: &mut [f32; LA
 #[target_feature(enable = "avx2,fma")]
 fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
     use std::arch::x86_64::*;
+    // SAFETY: every index `read` gets is clamped to `0..=TABLE_RES - 2` (`lerp_x86`), so
+    // both gathers (`i` and `i + 1`) stay inside `t`.
+    unsafe {
+        lerp_x86(co, |i| {
+            (
+                _mm256_i32gather_ps::<4>(t.as_ptr(), i),
+                _mm256_i32gather_ps::<4>(t.as_ptr().add(1), i),
+            )
+        })
+    }
+}
+
+/// [`cos_transmittance`] over AVX-512 (F + VL): the table's 64 entries in four registers,
+/// `t[i]` and `t[i + 1]` each by two two-register permutes (`vpermt2ps`, indices `i mod 32`)
+/// and a blend on `i >= 32`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn cos_transmittance_avx512(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
+    use std::arch::x86_64::*;
+    const _: () = assert!(TABLE_RES == 64);
+    // SAFETY: `t` holds 64 floats, read as four unaligned registers of 16.
+    unsafe {
+        let p = t.as_ptr();
+        let (t0, t1, t2, t3) = (
+            _mm512_loadu_ps(p),
+            _mm512_loadu_ps(p.add(16)),
+            _mm512_loadu_ps(p.add(32)),
+            _mm512_loadu_ps(p.add(48)),
+        );
+        let read = |i: __m256i| {
+            let i = _mm512_zextsi256_si512(i);
+            let high = _mm512_cmpge_epi32_mask(i, _mm512_set1_epi32(32));
+            let v = _mm512_mask_blend_ps(
+                high,
+                _mm512_permutex2var_ps(t0, i, t1),
+                _mm512_permutex2var_ps(t2, i, t3),
+            );
+            _mm512_castps512_ps256(v)
+        };
+        lerp_x86(co, |i| {
+            (read(i), read(_mm256_add_epi32(i, _mm256_set1_epi32(1))))
+        })
+    }
+}
+
+/// The lanes of [`cos_transmittance`] over AVX2 with `read(i) = (t[i], t[i + 1])`: the
+/// portable loop's operations in its order (no fused multiply-add), each index clamped to
+/// `0..=TABLE_RES - 2`. Inlined into its callers, which have the features.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn lerp_x86(
+    co: &mut [f32; LANES],
+    read: impl Fn(std::arch::x86_64::__m256i) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256),
+) {
+    use std::arch::x86_64::*;
     const _: () = assert!(LANES == 8);
-    // SAFETY: `co` holds 8 floats; every gathered index is clamped to `0..=TABLE_RES - 2`,
-    // so both reads (`i` and `i + 1`) stay inside `t`.
+    // SAFETY: `co` holds 8 floats; the caller has AVX2.
     unsafe {
         let c = _mm256_loadu_ps(co.as_ptr());
         let zero = _mm256_setzero_ps();
@@ -248,8 +318,7 @@ fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
             _mm256_set1_epi32(TABLE_RES as i32 - 2),
         );
         let w = _mm256_sub_ps(fi, _mm256_cvtepi32_ps(i));
-        let t0 = _mm256_i32gather_ps::<4>(t.as_ptr(), i);
-        let t1 = _mm256_i32gather_ps::<4>(t.as_ptr().add(1), i);
+        let (t0, t1) = read(i);
         let tc = _mm256_add_ps(
             _mm256_mul_ps(t0, _mm256_sub_ps(one, w)),
             _mm256_mul_ps(t1, w),
@@ -267,7 +336,8 @@ fn cos_transmittance_avx2(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
 /// `relight_scene::material::microfacet`). Computed with one division and one square root
 /// (the five of the definition dominated the lanes): with `t = |h|^2 - (n . h)^2 (1 - a^2)
 /// = a^2 |h|^2 s` and `q = c_w^2 + a^2 max(0, 1 - c_w^2) = c_w^2 (1 + tan^2)`,
-/// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`.
+/// `G1(w) = 2 c_w / (c_w + sqrt q)` and `G1 / s^2 = 2 c_w a^4 |h|^4 / ((c_w + sqrt q) t^2)`,
+/// here without its constant factor `2 a^4` (the caller's, once per sum).
 #[inline(always)]
 fn ggx_term(a2: f32, nv: f32, co: f32, hh: f32) -> f32 {
     let g = ggx_ratio(a2, nv, co, hh);
@@ -281,7 +351,7 @@ fn ggx_term(a2: f32, nv: f32, co: f32, hh: f32) -> f32 {
 
 /// [`ggx_term`] before its division and its mask ([`ggx_ratio`]).
 struct GgxRatio {
-    /// `2 c_w a^4 |h|^4`.
+    /// `c_w |h|^4` (the term's `2 a^4` is the caller's).
     num: f32,
     /// `(c_w + sqrt q) t^2`.
     den: f32,
@@ -302,9 +372,8 @@ fn ggx_ratio(a2: f32, nv: f32, co: f32, hh: f32) -> GgxRatio {
     let co2 = co * co;
     let t = hh - hn * hn * (1.0 - a2);
     let q = co2 + a2 * (1.0 - co2).max(0.0);
-    let a2hh = a2 * hh;
     GgxRatio {
-        num: 2.0 * co * a2hh * a2hh,
+        num: co * hh * hh,
         den: (co + q.sqrt()) * (t * t),
         hh,
         lit: co > 0.0 && hn > 0.0,
@@ -570,8 +639,9 @@ mod tests {
         for eta in [1.01f32, 1.1, 1.33, 1.5, 2.0, 2.5, 4.0] {
             for i in 0..=1000 {
                 let c = i as f32 / 1000.0;
-                let [num, den] = fresnel_ratio(c * c, eta * eta - 1.0);
-                let (fast, slow) = (num / den, fresnel_dielectric(c, eta));
+                let e1 = eta * eta - 1.0;
+                let [num, den] = fresnel_ratio(c * c, e1);
+                let (fast, slow) = (0.5 * e1 * e1 * num / den, fresnel_dielectric(c, eta));
                 assert!(
                     (fast - slow).abs() <= 2e-6 + 1e-5 * slow,
                     "eta {eta}, cos {c}: {fast} against {slow}"
@@ -614,7 +684,7 @@ mod tests {
                     dir: dir.each_ref().map(|x| x.as_slice()),
                     ring_cos: spread.then_some(ring.as_slice()),
                 };
-                let (slow, slow_plastic) = (ggx_body(&g, &f), plastic_body::<false>(&g, &p));
+                let (slow, slow_plastic) = (ggx_body(&g, &f), plastic_body::<LOOKUP_LOADS>(&g, &p));
                 assert!(slow.min_element() > 0.0, "{slow}");
                 assert!(slow_plastic[0].min_element() > 0.0 && slow_plastic[1].min_element() > 0.0);
                 // SAFETY: AVX2 and FMA checked above (`Isa::detect`).
