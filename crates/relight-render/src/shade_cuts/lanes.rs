@@ -1,12 +1,13 @@
 //! The per-fragment sums of `shade_cuts::triangle` (and of the local-light bounce,
-//! `crate::shade_local`) over [`LANES`]-wide groups of merged clusters, written so the compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]`
-//! groups, no branch (masks become selects), and one body compiled three times: for the
+//! `crate::shade_local`) over [`LANES`]-wide groups of merged clusters, written so the
+//! compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]` groups, no branch (masks become selects), and one body compiled three times: for the
 //! portable target, with AVX2 + FMA, and with AVX-512 (F + VL) as well, chosen at run time
 //! ([`Isa`]). The AVX-512 build still works on 8-lane (256-bit) groups; what it gains is 32
 //! vector registers instead of 16, so the five-point rule's terms of the glossy sums stay in
-//! registers instead of spilling (the plastic's lanes 12 % faster on a Zen 4, `docs/RESULTS.md`
+//! registers instead of spilling (the plastic's lanes 16 % faster on a Zen 4, `docs/RESULTS.md`
 //! §11). Rust never fuses a multiply and an add on its own, so the three builds give the same
-//! bits.
+//! bits. `RELIGHT_NO_AVX512=1` caps the choice at AVX2 and `RELIGHT_PORTABLE_KERNELS=1` at the
+//! portable build (comparisons: `relight bench` as on a CPU without them).
 //!
 //! Layout: structure-of-arrays, each array a whole number of groups (zero clusters pad the
 //! last one; they add `0`).
@@ -92,9 +93,26 @@ pub(crate) enum Isa {
 }
 
 impl Isa {
-    /// The widest build this CPU runs (`is_x86_feature_detected!` caches its answer).
+    /// The widest build this CPU runs, capped for comparisons by the environment:
+    /// `RELIGHT_PORTABLE_KERNELS=1` (as `shade_sh`) gives the portable build,
+    /// `RELIGHT_NO_AVX512=1` at most AVX2 (the frame of a CPU without AVX-512). Read once.
     #[inline]
     pub(crate) fn detect() -> Isa {
+        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *ISA.get_or_init(|| {
+            let set = |name: &str| std::env::var_os(name).is_some_and(|v| v == "1");
+            if set("RELIGHT_PORTABLE_KERNELS") {
+                return Isa::Portable;
+            }
+            match Isa::of_cpu() {
+                Isa::Avx512 if set("RELIGHT_NO_AVX512") => Isa::Avx2,
+                isa => isa,
+            }
+        })
+    }
+
+    /// The widest build this CPU runs (`is_x86_feature_detected!`).
+    fn of_cpu() -> Isa {
         #[cfg(target_arch = "x86_64")]
         {
             use std::is_x86_feature_detected as has;
@@ -656,7 +674,7 @@ mod tests {
     fn vector_lanes_equal_the_portable_lanes_conductor_and_plastic() {
         #[cfg(target_arch = "x86_64")]
         {
-            let isa = Isa::detect();
+            let isa = Isa::of_cpu();
             if isa == Isa::Portable {
                 println!("skipped: this CPU has no AVX2 + FMA");
                 return;
@@ -687,7 +705,7 @@ mod tests {
                 let (slow, slow_plastic) = (ggx_body(&g, &f), plastic_body::<LOOKUP_LOADS>(&g, &p));
                 assert!(slow.min_element() > 0.0, "{slow}");
                 assert!(slow_plastic[0].min_element() > 0.0 && slow_plastic[1].min_element() > 0.0);
-                // SAFETY: AVX2 and FMA checked above (`Isa::detect`).
+                // SAFETY: AVX2 and FMA checked above (`Isa::of_cpu`).
                 let fast = unsafe { (ggx_avx2(&g, &f), plastic_avx2(&g, &p)) };
                 assert_eq!(fast, (slow, slow_plastic), "AVX2, spread {spread}");
                 if isa == Isa::Avx512 {
