@@ -176,6 +176,14 @@ pub enum LobeOrder {
     /// slot 1 is the one-lobe fit's Gaussian, slot `k` the `k`-th one found, and the fit of
     /// `N` lobes starts from the fit of `N - 1`.
     Nested,
+    /// Lobe `k` fitted alone to the signed residual of the first `k - 1`, which stay as they
+    /// were (in every sweep): slot 1 is the one-lobe fit's lobe in shape, and the `N`-lobe
+    /// set is the `N - 1` set plus one, all rescaled together to the data's integral. Nested
+    /// lobes' joint refinement moves slot 1 (17-27 % in amplitude on the small test sphere,
+    /// docs/RESULTS.md §8, session 32), which made extra lobes cost on the small test
+    /// scenes; these do not move it (session 36). Measured on the small test scenes and
+    /// Fig. 3-4's Spot conductor only: not a default.
+    Additive,
 }
 
 /// The shape each (vertex, view)'s lobes are given after the least-squares fit (issue 10;

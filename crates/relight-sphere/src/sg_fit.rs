@@ -136,6 +136,21 @@ impl FitTarget {
         self.dirs.len()
     }
 
+    /// The same samples with `lobes` (evaluated with `opts.kernel`) subtracted from the
+    /// values: the target of a lobe fitted to what `lobes` leave (signed).
+    pub fn residual(&self, lobes: &[SgLobe], opts: &FitOptions) -> FitTarget {
+        let l: Vec<Lobe64> = lobes.iter().map(Lobe64::from_lobe).collect();
+        let mut model = vec![[0.0f64; 3]; self.len()];
+        model_of(self, &l, &mut model, opts);
+        let mut r = self.clone();
+        for (v, m) in r.values.iter_mut().zip(&model) {
+            for c in 0..3 {
+                v[c] -= m[c];
+            }
+        }
+        r
+    }
+
     /// Whether there are no samples.
     pub fn is_empty(&self) -> bool {
         self.dirs.is_empty()

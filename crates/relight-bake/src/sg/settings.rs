@@ -154,6 +154,7 @@ impl LobeSetting {
             match self.order {
                 LobeOrder::Joint => "joint",
                 LobeOrder::Nested => "nested",
+                LobeOrder::Additive => "additive",
             }
         )
     }
@@ -256,11 +257,11 @@ impl SgBakeSettings {
             // 8.5 / 11.5 / 13.8 %): a residual lobe's axis drifts between (vertex, view)s and
             // shows as blotches once seen from another view. Nested lobes keep slot 1 the
             // one-lobe fit (docs/RESULTS.md §8, session 28).
-            if many && self.fit.lobe_order != super::LobeOrder::Nested {
+            if many && self.fit.lobe_order == super::LobeOrder::Joint {
                 return err(format!(
                     "fit.lobe_domain half-vector fits more than one lobe per component only \
-                     with fit.lobe_order nested (direct_lobes {}, indirect_lobes {} given; \
-                     pass --lobe-order nested)",
+                     with fit.lobe_order nested or additive (direct_lobes {}, indirect_lobes \
+                     {} given; pass --lobe-order nested)",
                     self.direct_lobes, self.indirect_lobes
                 ));
             }

@@ -421,3 +421,28 @@ fn one_ggx_kernel_lobe_fits_a_ggx_lobe_better_than_one_gaussian() {
         }
     }
 }
+
+/// `FitTarget::residual`: the data less the lobes at every sample, so a mixture's residual
+/// of its own first lobes is its last lobe, and fitting one lobe to it recovers that lobe.
+#[test]
+fn residual_of_the_first_lobes_is_the_last() {
+    let t = truth(3);
+    let target = target_of(24, |d| eval_mixture(&t, d));
+    let opts = FitOptions::default();
+    let rest = target_of(24, |d| eval_mixture(&t[2..], d));
+    let r = target.residual(&t[..2], &opts);
+    for (a, b) in r.values.iter().zip(&rest.values) {
+        for c in 0..3 {
+            assert!(
+                (a[c] - b[c]).abs() < 1e-5 * (1.0 + b[c].abs()),
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
+    // Nothing left of the whole mixture.
+    assert!(target.residual(&t, &opts).norm2() < 1e-10 * target.norm2());
+    let start = residual_lobe(&target, &t[..2], &opts);
+    let f = refine_arranged(&r, &[start], &opts, None, None);
+    assert!(f.relative_error < 1e-3, "{}", f.relative_error);
+    assert!(f.lobes[0].axis.dot(t[2].axis) > 0.999, "{:?}", f.lobes[0]);
+}

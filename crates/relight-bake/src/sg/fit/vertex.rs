@@ -327,7 +327,10 @@ fn fit_view(
 ) -> (Vec<SgLobe>, f64, usize) {
     let n = c.lobes;
     let nested = c.settings.lobe_order == LobeOrder::Nested && n > 1;
-    let (mut lobes, err, it) = if nested && first {
+    let additive = c.settings.lobe_order == LobeOrder::Additive && n > 1;
+    let (mut lobes, err, it) = if additive {
+        fit_additive(c, t, warm, prior, spatial, first)
+    } else if nested && first {
         fit_nested(c, t, warm, prior, spatial)
     } else if nested {
         // Later sweeps refine all lobes together and keep the order of the warm start (the
@@ -404,6 +407,63 @@ fn fit_nested(
             }
         }
         cur = permuted(&f.lobes, &best_assignment(&cost, k));
+    }
+    (cur, err, iterations)
+}
+
+/// [`LobeOrder::Additive`], in every sweep: slot 1 as [`solve_view`] fits one lobe (warm
+/// start, prior and neighbours of slot 0), then for `k = 2..N` slot `k` alone refined on the
+/// signed residual of slots `1..k-1` (`FitTarget::residual`), from the warm start's slot `k`
+/// after the first sweep, else from a lobe on the residual ([`sg_fit::residual_lobe`]), with
+/// the prior and neighbours of slot `k` (no energy term: the residual's integral is not the
+/// data's; the set is rescaled after, [`shape`]). Returns the lobes, the relative L2 error of
+/// the whole set and the iterations.
+fn fit_additive(
+    c: &ComponentFit,
+    t: &ViewTarget,
+    warm: Option<Vec<SgLobe>>,
+    prior: Option<Vec<SgLobe>>,
+    spatial: &[SgLobe],
+    first: bool,
+) -> (Vec<SgLobe>, f64, usize) {
+    let n = c.lobes;
+    let head = |l: &Option<Vec<SgLobe>>, k: usize| l.as_ref().map(|v| v[..k].to_vec());
+    let (mut cur, mut err, mut iterations) = solve_view(
+        c,
+        1,
+        t,
+        head(&warm, 1),
+        head(&prior, 1),
+        &first_of(spatial, n, 1),
+        first,
+    );
+    if t.norm2 <= 0.0 {
+        // No data: every slot takes the prior's (or the warm start's) shape, zero amplitude.
+        return solve_view(c, n, t, warm, prior, spatial, true);
+    }
+    let opts = FitOptions {
+        energy: None,
+        ..weighted_options(c, t)
+    };
+    for k in 2..=n {
+        let resid = t.target.residual(&cur, &opts);
+        let start = match &warm {
+            Some(w) if !first && w.len() == n => w[k - 1],
+            _ => sg_fit::residual_lobe(&t.target, &cur, &opts),
+        };
+        let start = clamp_sharpness(&[start], &opts);
+        let sp: Vec<SgLobe> = spatial.chunks_exact(n).map(|s| s[k - 1]).collect();
+        let arr = Arrangement {
+            weight: c.settings.spatial_weight * t.norm2,
+            neighbours: &sp,
+        };
+        let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
+        let p = prior.as_ref().map(|p| p[k - 1..k].to_vec());
+        let f = sg_fit::refine_arranged(&resid, &start, &opts, p.as_deref(), arr);
+        iterations += f.iterations;
+        // The solver's error is relative to the residual's norm.
+        err = f.relative_error * (resid.norm2() / t.target.norm2()).sqrt();
+        cur.push(f.lobes[0]);
     }
     (cur, err, iterations)
 }
