@@ -181,8 +181,9 @@ pub enum LobeOrder {
     /// set is the `N - 1` set plus one, all rescaled together to the data's integral. Nested
     /// lobes' joint refinement moves slot 1 (17-27 % in amplitude on the small test sphere,
     /// docs/RESULTS.md §8, session 32), which made extra lobes cost on the small test
-    /// scenes; these do not move it (session 36). Measured on the small test scenes and
-    /// Fig. 3-4's Spot conductor only: not a default.
+    /// scenes; these do not move it (session 36). Measured on the small test scenes, Fig.
+    /// 3-4's Spot conductor and St Peter's conductor (flat there, as nested lobes are): not
+    /// a default (nested is better on the shadowed test scene at two and three lobes).
     Additive,
 }
 

@@ -329,9 +329,9 @@ fn fit_view(
     let nested = c.settings.lobe_order == LobeOrder::Nested && n > 1;
     let additive = c.settings.lobe_order == LobeOrder::Additive && n > 1;
     let (mut lobes, err, it) = if additive {
-        fit_additive(c, t, warm, prior, spatial, first)
+        fit_slots(c, t, (warm, prior), spatial, first, LobeOrder::Additive)
     } else if nested && first {
-        fit_nested(c, t, warm, prior, spatial)
+        fit_slots(c, t, (warm, prior), spatial, true, LobeOrder::Nested)
     } else if nested {
         // Later sweeps refine all lobes together and keep the order of the warm start (the
         // vertex's own nested fit, or the consensus of its neighbours in a relaxation).
@@ -357,76 +357,30 @@ fn first_of(sets: &[SgLobe], n: usize, k: usize) -> Vec<SgLobe> {
         .collect()
 }
 
-/// [`LobeOrder::Nested`] in the flood fill's first sweep: one lobe as [`solve_view`] fits it
-/// (warm start, prior and neighbours of slot 0), then for `k = 2..N` a lobe on the residual
-/// of the `k - 1` ([`sg_fit::residual_lobe`]) and a joint refinement of the `k` with the
-/// coherence terms of the first `k` slots; after each step the first `k - 1` slots are
-/// matched to the previous step's lobes, so slot `k` is always the `k`-th lobe found.
-fn fit_nested(
+/// The lobes slot by slot: slot 1 as [`solve_view`] fits one lobe (warm start, prior and
+/// neighbours of slot 1), then for `k = 2..N` by `order`:
+///
+/// - [`LobeOrder::Nested`] (the flood fill's first sweep only): a lobe on the residual of the
+///   `k - 1` ([`sg_fit::residual_lobe`]) and a joint refinement of the `k` with the
+///   coherence terms of the first `k` slots; after each step the first `k - 1` slots are
+///   matched to the previous step's lobes, so slot `k` is always the `k`-th lobe found.
+/// - [`LobeOrder::Additive`] (every sweep): slot `k` alone refined on the signed residual
+///   of slots `1..k-1` (`FitTarget::residual`), which stay as they are, from the warm
+///   start's slot `k` after the first sweep, else from a lobe on the residual, with the
+///   prior and neighbours of slot `k` and no energy term (the residual's integral is not
+///   the data's; the set is rescaled after, [`shape`]).
+///
+/// Returns the lobes, the relative L2 error of the whole set and the iterations.
+fn fit_slots(
     c: &ComponentFit,
     t: &ViewTarget,
-    warm: Option<Vec<SgLobe>>,
-    prior: Option<Vec<SgLobe>>,
-    spatial: &[SgLobe],
-) -> (Vec<SgLobe>, f64, usize) {
-    let n = c.lobes;
-    let head = |l: &Option<Vec<SgLobe>>, k: usize| l.as_ref().map(|v| v[..k].to_vec());
-    let (mut cur, mut err, mut iterations) = solve_view(
-        c,
-        1,
-        t,
-        head(&warm, 1),
-        head(&prior, 1),
-        &first_of(spatial, n, 1),
-        true,
-    );
-    if t.norm2 <= 0.0 {
-        // No data: every slot takes the prior's (or the warm start's) shape, zero amplitude.
-        let (l, e, it) = solve_view(c, n, t, warm, prior, spatial, true);
-        return (l, e, it);
-    }
-    let opts = weighted_options(c, t);
-    for k in 2..=n {
-        let mut start = cur.clone();
-        start.push(sg_fit::residual_lobe(&t.target, &cur, &opts));
-        let start = clamp_sharpness(&start, &opts);
-        let sp = first_of(spatial, n, k);
-        let arr = Arrangement {
-            weight: c.settings.spatial_weight * t.norm2,
-            neighbours: &sp,
-        };
-        let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
-        let f = sg_fit::refine_arranged(&t.target, &start, &opts, head(&prior, k).as_deref(), arr);
-        iterations += f.iterations;
-        err = f.relative_error;
-        // Slots 1..k-1 keep the previous step's lobes (best assignment), slot k the new one.
-        let mut cost = vec![0f32; k * k];
-        for (slot, p) in cur.iter().enumerate() {
-            for (j, l) in f.lobes.iter().enumerate() {
-                cost[slot * k + j] = lobe_distance(p, l);
-            }
-        }
-        cur = permuted(&f.lobes, &best_assignment(&cost, k));
-    }
-    (cur, err, iterations)
-}
-
-/// [`LobeOrder::Additive`], in every sweep: slot 1 as [`solve_view`] fits one lobe (warm
-/// start, prior and neighbours of slot 0), then for `k = 2..N` slot `k` alone refined on the
-/// signed residual of slots `1..k-1` (`FitTarget::residual`), from the warm start's slot `k`
-/// after the first sweep, else from a lobe on the residual ([`sg_fit::residual_lobe`]), with
-/// the prior and neighbours of slot `k` (no energy term: the residual's integral is not the
-/// data's; the set is rescaled after, [`shape`]). Returns the lobes, the relative L2 error of
-/// the whole set and the iterations.
-fn fit_additive(
-    c: &ComponentFit,
-    t: &ViewTarget,
-    warm: Option<Vec<SgLobe>>,
-    prior: Option<Vec<SgLobe>>,
+    (warm, prior): (Option<Vec<SgLobe>>, Option<Vec<SgLobe>>),
     spatial: &[SgLobe],
     first: bool,
+    order: LobeOrder,
 ) -> (Vec<SgLobe>, f64, usize) {
     let n = c.lobes;
+    let additive = order == LobeOrder::Additive;
     let head = |l: &Option<Vec<SgLobe>>, k: usize| l.as_ref().map(|v| v[..k].to_vec());
     let (mut cur, mut err, mut iterations) = solve_view(
         c,
@@ -441,29 +395,51 @@ fn fit_additive(
         // No data: every slot takes the prior's (or the warm start's) shape, zero amplitude.
         return solve_view(c, n, t, warm, prior, spatial, true);
     }
-    let opts = FitOptions {
-        energy: None,
-        ..weighted_options(c, t)
-    };
+    let mut opts = weighted_options(c, t);
+    if additive {
+        opts.energy = None;
+    }
     for k in 2..=n {
-        let resid = t.target.residual(&cur, &opts);
-        let start = match &warm {
-            Some(w) if !first && w.len() == n => w[k - 1],
-            _ => sg_fit::residual_lobe(&t.target, &cur, &opts),
+        // The neighbours' slot `k` (additive) or first `k` slots (nested).
+        let sp: Vec<SgLobe> = if additive {
+            spatial.chunks_exact(n).map(|s| s[k - 1]).collect()
+        } else {
+            first_of(spatial, n, k)
         };
-        let start = clamp_sharpness(&[start], &opts);
-        let sp: Vec<SgLobe> = spatial.chunks_exact(n).map(|s| s[k - 1]).collect();
         let arr = Arrangement {
             weight: c.settings.spatial_weight * t.norm2,
             neighbours: &sp,
         };
         let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
-        let p = prior.as_ref().map(|p| p[k - 1..k].to_vec());
-        let f = sg_fit::refine_arranged(&resid, &start, &opts, p.as_deref(), arr);
+        if additive {
+            let resid = t.target.residual(&cur, &opts);
+            let start = match &warm {
+                Some(w) if !first && w.len() == n => w[k - 1],
+                _ => sg_fit::residual_lobe(&t.target, &cur, &opts),
+            };
+            let start = clamp_sharpness(&[start], &opts);
+            let p = prior.as_ref().map(|p| p[k - 1..k].to_vec());
+            let f = sg_fit::refine_arranged(&resid, &start, &opts, p.as_deref(), arr);
+            iterations += f.iterations;
+            // The solver's error is relative to the residual's norm.
+            err = f.relative_error * (resid.norm2() / t.target.norm2()).sqrt();
+            cur.push(f.lobes[0]);
+            continue;
+        }
+        let mut start = cur.clone();
+        start.push(sg_fit::residual_lobe(&t.target, &cur, &opts));
+        let start = clamp_sharpness(&start, &opts);
+        let f = sg_fit::refine_arranged(&t.target, &start, &opts, head(&prior, k).as_deref(), arr);
         iterations += f.iterations;
-        // The solver's error is relative to the residual's norm.
-        err = f.relative_error * (resid.norm2() / t.target.norm2()).sqrt();
-        cur.push(f.lobes[0]);
+        err = f.relative_error;
+        // Slots 1..k-1 keep the previous step's lobes (best assignment), slot k the new one.
+        let mut cost = vec![0f32; k * k];
+        for (slot, p) in cur.iter().enumerate() {
+            for (j, l) in f.lobes.iter().enumerate() {
+                cost[slot * k + j] = lobe_distance(p, l);
+            }
+        }
+        cur = permuted(&f.lobes, &best_assignment(&cost, k));
     }
     (cur, err, iterations)
 }
