@@ -487,12 +487,15 @@ impl ShadeOptions {
                 corners: LobeBlend::Linear,
                 ..ShadeOptions::default()
             },
-            (SgDomain::HalfVector, LobeOrder::Nested) if lobes <= 1 => ShadeOptions::PAPER,
-            (SgDomain::HalfVector, LobeOrder::Nested) => ShadeOptions::NESTED_HALF_VECTOR,
-            // The nested frame (session 36: the small sphere better with views by energy,
-            // the shadowed highlight with every blend linear; docs/RESULTS.md §8).
-            (SgDomain::HalfVector, LobeOrder::Additive) if lobes <= 1 => ShadeOptions::PAPER,
-            (SgDomain::HalfVector, LobeOrder::Additive) => ShadeOptions::NESTED_HALF_VECTOR,
+            // Additive lobes take the nested frame too (session 36: the small sphere better
+            // with views by energy, the shadowed highlight with every blend linear;
+            // docs/RESULTS.md §8).
+            (SgDomain::HalfVector, LobeOrder::Nested | LobeOrder::Additive) if lobes <= 1 => {
+                ShadeOptions::PAPER
+            }
+            (SgDomain::HalfVector, LobeOrder::Nested | LobeOrder::Additive) => {
+                ShadeOptions::NESTED_HALF_VECTOR
+            }
         }
     }
 

@@ -1,13 +1,14 @@
 //! The per-fragment sums of `shade_cuts::triangle` (and of the local-light bounce,
 //! `crate::shade_local`) over [`LANES`]-wide groups of merged clusters, written so the
-//! compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]` groups, no branch (masks become selects), and one body compiled three times: for the
-//! portable target, with AVX2 + FMA, and with AVX-512 (F + VL) as well, chosen at run time
-//! ([`Isa`]). The AVX-512 build still works on 8-lane (256-bit) groups; what it gains is 32
-//! vector registers instead of 16, so the five-point rule's terms of the glossy sums stay in
-//! registers instead of spilling (the plastic's lanes 16 % faster on a Zen 4, `docs/RESULTS.md`
-//! §11). Rust never fuses a multiply and an add on its own, so the three builds give the same
-//! bits. `RELIGHT_NO_AVX512=1` caps the choice at AVX2 and `RELIGHT_PORTABLE_KERNELS=1` at the
-//! portable build (comparisons: `relight bench` as on a CPU without them).
+//! compiler vectorises them: plain `f32` arithmetic on `[f32; LANES]` groups, no branch
+//! (masks become selects), and one body compiled three times: for the portable target, with
+//! AVX2 + FMA, and with AVX-512 (F + VL) as well, chosen at run time ([`Isa`]). The AVX-512
+//! build still works on 8-lane (256-bit) groups; what it gains is 32 vector registers
+//! instead of 16, so the five-point rule's terms of the glossy sums stay in registers
+//! instead of spilling (the plastic's lanes 16 % faster on a Zen 4, `docs/RESULTS.md` §11).
+//! Rust never fuses a multiply and an add on its own, so the three builds give the same
+//! bits. `RELIGHT_NO_AVX512=1` caps the choice at AVX2 and `RELIGHT_PORTABLE_KERNELS=1` at
+//! the portable build (comparisons: `relight bench` as on a CPU without them).
 //!
 //! Layout: structure-of-arrays, each array a whole number of groups (zero clusters pad the
 //! last one; they add `0`).
@@ -310,15 +311,18 @@ fn cos_transmittance_avx512(t: &[f32; TABLE_RES], co: &mut [f32; LANES]) {
     }
 }
 
+/// Eight `i32` and eight `f32` lanes of AVX2 ([`lerp_x86`]).
+#[cfg(target_arch = "x86_64")]
+type X86I = std::arch::x86_64::__m256i;
+#[cfg(target_arch = "x86_64")]
+type X86F = std::arch::x86_64::__m256;
+
 /// The lanes of [`cos_transmittance`] over AVX2 with `read(i) = (t[i], t[i + 1])`: the
 /// portable loop's operations in its order (no fused multiply-add), each index clamped to
 /// `0..=TABLE_RES - 2`. Inlined into its callers, which have the features.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn lerp_x86(
-    co: &mut [f32; LANES],
-    read: impl Fn(std::arch::x86_64::__m256i) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256),
-) {
+unsafe fn lerp_x86(co: &mut [f32; LANES], read: impl Fn(X86I) -> (X86F, X86F)) {
     use std::arch::x86_64::*;
     const _: () = assert!(LANES == 8);
     // SAFETY: `co` holds 8 floats; the caller has AVX2.

@@ -143,12 +143,12 @@ impl TriangleCut {
             // nodes inside the cluster (the merged clusters are those, up to its index).
             let mut p = tables.cover[c.leftleaf as usize] as usize;
             if light.index[p] >= c.node {
-                n += out.lit(light, tables, spread, n, (c.node, c.leftleaf), p, c.vis);
+                n += out.lit((light, tables), spread, n, (c.node, c.leftleaf), p, c.vis);
                 continue;
             }
             loop {
                 let node = (light.index[p], light.leftleaf[p]);
-                n += out.lit(light, tables, spread, n, node, p, c.vis);
+                n += out.lit((light, tables), spread, n, node, p, c.vis);
                 p += 1;
                 if p == light.len() || light.index[p] > c.node {
                     break;
@@ -331,12 +331,10 @@ impl Columns<'_> {
     /// (with its leftmost leaf) lit by light-cut node `p` (`tables` those of `light`), with
     /// the union's visibility `q`, unless `p` holds no light. Returns the clusters written
     /// (0 or 1). `|C'|` as `MergedNode::leaves` (exact in f32 below 2^24 lights).
-    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn lit(
         &mut self,
-        light: &LightCut,
-        tables: &LightTables,
+        (light, tables): (&LightCut, &LightTables),
         spread: bool,
         n: usize,
         (node, leftleaf): (u32, u32),

@@ -413,9 +413,10 @@ fn fit_slots(
         let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
         if additive {
             let resid = t.target.residual(&cur, &opts);
+            // From the residual itself: the earlier lobes are already subtracted.
             let start = match &warm {
                 Some(w) if !first && w.len() == n => w[k - 1],
-                _ => sg_fit::residual_lobe(&t.target, &cur, &opts),
+                _ => sg_fit::residual_lobe(&resid, &[], &opts),
             };
             let start = clamp_sharpness(&[start], &opts);
             let p = prior.as_ref().map(|p| p[k - 1..k].to_vec());
