@@ -108,8 +108,9 @@ pub struct SgBake {
     /// was fitted for.
     pub horizon_deg: f32,
     /// How the fit ordered `N >= 2` lobes (the fit's [`SgFitSettings::lobe_order`]):
-    /// [`LobeOrder::Nested`] lobes correspond slot by slot by construction, so the frame
-    /// does not re-match them (`relight_render::shade_sg::ShadeOptions::default_for`).
+    /// [`LobeOrder::Nested`] and [`LobeOrder::Additive`] lobes correspond slot by slot by
+    /// construction, so the frame does not re-match them
+    /// (`relight_render::shade_sg::ShadeOptions::default_for`).
     pub lobe_order: LobeOrder,
 }
 
@@ -173,17 +174,22 @@ pub enum LobeOrder {
     #[default]
     Joint,
     /// Lobe `k` added on the residual of the first `k - 1` and all `k` refined, `k = 1..N`:
-    /// slot 1 is the one-lobe fit's Gaussian, slot `k` the `k`-th one found, and the fit of
-    /// `N` lobes starts from the fit of `N - 1`.
+    /// slot 1 starts as the one-lobe fit's lobe, slot `k` is the `k`-th one found, and the
+    /// fit of `N` lobes starts from the fit of `N - 1`. The joint refinement moves slot 1
+    /// away from the one-lobe fit (docs/RESULTS.md §8, session 32). The half-vector
+    /// domain's default (`settings::LobeSetting::HALF_VECTOR_GGX`).
     Nested,
     /// Lobe `k` fitted alone to the signed residual of the first `k - 1`, which stay as they
     /// were (in every sweep): slot 1 is the one-lobe fit's lobe in shape, and the `N`-lobe
     /// set is the `N - 1` set plus one, all rescaled together to the data's integral. Nested
     /// lobes' joint refinement moves slot 1 (17-27 % in amplitude on the small test sphere,
     /// docs/RESULTS.md §8, session 32), which made extra lobes cost on the small test
-    /// scenes; these do not move it (session 36). Measured on the small test scenes, Fig.
-    /// 3-4's Spot conductor and St Peter's conductor (flat there, as nested lobes are): not
-    /// a default (nested is better on the shadowed test scene at two and three lobes).
+    /// scenes; these do not move it (session 36). A residual lobe that leaves the residual
+    /// no smaller is dropped (zero amplitude), and the residual is taken of the earlier
+    /// lobes with their peaks bounded as they are stored (session 37). Not the default:
+    /// better than nested on the small test scenes from three lobes, flat on St Peter's and
+    /// the Spot conductors, but 0.8-1.0 points worse than nested on Fig. 3-5 and the teapot
+    /// under Kiara 1 Dawn at two and three lobes (docs/RESULTS.md §8, session 37).
     Additive,
 }
 
@@ -243,8 +249,8 @@ pub enum SgDomain {
     /// GGX lobe's own variable, so that one lobe follows the reflection's stretch along the
     /// plane of incidence at grazing views. Rendered with five prefiltered lookups per
     /// Gaussian term (`relight_sphere::half_vector`); more than one lobe per component only
-    /// [`LobeOrder::Nested`] (jointly fitted ones were measured worse with each added lobe,
-    /// docs/RESULTS.md §8 session 28).
+    /// [`LobeOrder::Additive`] or [`LobeOrder::Nested`] (jointly fitted ones were measured
+    /// worse with each added lobe, docs/RESULTS.md §8 session 28).
     HalfVector,
 }
 

@@ -6,7 +6,7 @@
 mod frame;
 mod store;
 
-pub use frame::{SgBlend, SgFrame, SgFrameSettings, SgMatch};
+pub use frame::{SgBlend, SgFrame, SgFrameSettings, SgMatch, SgViewBlend};
 pub use store::SG_LOBE_FLOATS;
 
 use crate::shard::Shard;

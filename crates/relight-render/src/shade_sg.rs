@@ -429,8 +429,11 @@ pub struct SgTimes {
 /// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ShadeOptions {
-    /// The blend of a vertex's three nearest views.
+    /// The blend of a vertex's three nearest views, of each component's first slot.
     pub views: LobeBlend,
+    /// The blend of a vertex's three nearest views, of the later slots (equal to `views`
+    /// except for additive lobes, [`Self::ADDITIVE_HALF_VECTOR`]).
+    pub later_views: LobeBlend,
     /// Permute each view's lobes to the reference view's before they are blended (two or
     /// more lobes per component).
     pub match_views: bool,
@@ -444,6 +447,7 @@ impl ShadeOptions {
     /// The thesis' interpolation (section 2.3): linear parameters, slot `k` with slot `k`.
     pub const PAPER: ShadeOptions = ShadeOptions {
         views: LobeBlend::Linear,
+        later_views: LobeBlend::Linear,
         match_views: false,
         corners: LobeBlend::Linear,
         match_corners: false,
@@ -451,6 +455,7 @@ impl ShadeOptions {
     /// Energy blends of matched lobes across views and corners (the default of 2026-12-01).
     pub const ENERGY: ShadeOptions = ShadeOptions {
         views: LobeBlend::Energy,
+        later_views: LobeBlend::Energy,
         match_views: true,
         corners: LobeBlend::Energy,
         match_corners: true,
@@ -459,27 +464,54 @@ impl ShadeOptions {
     /// linear, slot by slot.
     pub const NESTED_HALF_VECTOR: ShadeOptions = ShadeOptions {
         views: LobeBlend::Energy,
+        later_views: LobeBlend::Energy,
         match_views: false,
         corners: LobeBlend::Linear,
         match_corners: false,
     };
+    /// Two or more additive half-vector lobes ([`Self::default_for`]): slot 1, which is the
+    /// one-lobe fit, blended as one lobe is ([`Self::PAPER`]); the later slots, each fitted
+    /// to what the earlier ones leave, with the views by energy; corners linear, slot by
+    /// slot. So an `N + 1`-lobe frame is the `N`-lobe frame plus one residual lobe (up to
+    /// the common energy factor of the bake).
+    pub const ADDITIVE_HALF_VECTOR: ShadeOptions = ShadeOptions {
+        views: LobeBlend::Linear,
+        later_views: LobeBlend::Energy,
+        match_views: false,
+        corners: LobeBlend::Linear,
+        match_corners: false,
+    };
+
+    /// The view blend of slot `k` (from 0) of a component.
+    #[inline]
+    pub fn view_blend(&self, k: usize) -> LobeBlend {
+        if k == 0 {
+            self.views
+        } else {
+            self.later_views
+        }
+    }
 
     /// The default interpolation of a bake whose lobes are in `domain`, ordered by `order`:
     /// [`Self::default`] for light-domain lobes. Half-vector lobes keep their integrals
     /// across both blends ([`keep_mass`]), so the corners' energy blend only weights their
     /// shapes by energy; blending them linearly instead measured better on all five scenes
     /// of the evaluation, by 0 to 1.7 points (docs/RESULTS.md §8, session 27: the Spot
-    /// conductor 10.9 -> 9.2 %). Half-vector bakes of two or more lobes are nested (the
-    /// settings refuse others): slot 1 is the one-lobe fit at every (vertex, view) and slot
-    /// `k` the `k`-th lobe found, so the slots already correspond and re-matching them by
-    /// axis distance can only pair a residual lobe with a main one: they are blended slot
-    /// by slot. With one lobe (`lobes`, the most of either component) every blend is
-    /// linear; with two or more the views' blend is by energy ([`Self::NESTED_HALF_VECTOR`]):
-    /// blended linearly across views, a residual lobe's axis is averaged with the next
-    /// view's at full weight however little energy it carries, and on St Peter's conductor
-    /// two and three lobes came out at 16.3 and 12.4 % against 8.1 % for one; with the views
-    /// by energy 8.1 and 8.3 %. Matching as well (the energy frame) broke the small sphere test
-    /// instead (13.0 % at two lobes against 7.5 % at one; docs/RESULTS.md §8, session 29).
+    /// conductor 10.9 -> 9.2 %). Half-vector bakes of two or more lobes are nested or
+    /// additive (the settings refuse others): slot 1 is fitted first at every (vertex,
+    /// view) and slot `k` is the `k`-th lobe found, so the slots already correspond and
+    /// re-matching them by axis distance can only pair a residual lobe with a main one:
+    /// they are blended slot by slot. With one lobe (`lobes`, the most of either component)
+    /// every blend is linear. With two or more, a residual lobe blended linearly across
+    /// views has its axis averaged with the next view's at full weight however little
+    /// energy it carries (St Peter's conductor, nested: 16.3 and 12.4 % at two and three
+    /// lobes against 8.1 % for one), so the later slots' views are blended by energy (8.1
+    /// and 8.3 %). Nested lobes blend slot 1 by energy too ([`Self::NESTED_HALF_VECTOR`]):
+    /// their joint refinement moves it away from the one-lobe fit, and blended linearly it
+    /// brought St Peter's blotches back (10.97 % at two lobes). Additive lobes keep slot 1
+    /// the one-lobe fit, so it is blended as one lobe is ([`Self::ADDITIVE_HALF_VECTOR`];
+    /// docs/RESULTS.md §8, session 37). Matching as well (the energy frame) broke the small
+    /// sphere test (13.0 % at two lobes against 7.5 % at one; session 29).
     pub fn default_for(domain: SgDomain, order: LobeOrder, lobes: usize) -> ShadeOptions {
         match (domain, order) {
             (SgDomain::Light, _) => ShadeOptions::default(),
@@ -487,15 +519,11 @@ impl ShadeOptions {
                 corners: LobeBlend::Linear,
                 ..ShadeOptions::default()
             },
-            // Additive lobes take the nested frame too (session 36: the small sphere better
-            // with views by energy, the shadowed highlight with every blend linear;
-            // docs/RESULTS.md §8).
             (SgDomain::HalfVector, LobeOrder::Nested | LobeOrder::Additive) if lobes <= 1 => {
                 ShadeOptions::PAPER
             }
-            (SgDomain::HalfVector, LobeOrder::Nested | LobeOrder::Additive) => {
-                ShadeOptions::NESTED_HALF_VECTOR
-            }
+            (SgDomain::HalfVector, LobeOrder::Nested) => ShadeOptions::NESTED_HALF_VECTOR,
+            (SgDomain::HalfVector, LobeOrder::Additive) => ShadeOptions::ADDITIVE_HALF_VECTOR,
         }
     }
 
@@ -514,6 +542,7 @@ impl Default for ShadeOptions {
     fn default() -> Self {
         ShadeOptions {
             views: LobeBlend::Linear,
+            later_views: LobeBlend::Linear,
             match_views: true,
             corners: LobeBlend::Energy,
             match_corners: true,
@@ -688,7 +717,8 @@ impl<'a> SgRenderer<'a> {
             let p = self.permutations(self.options.match_views, ids, l);
             for k in 0..lobes.lobe_count {
                 let corners = [0, 1, 2].map(|c| &l[c][p[c][k] as usize]);
-                let mut lobe = blend3_with(self.options.views, self.bake.kernel, corners, b);
+                let blend = self.options.view_blend(k);
+                let mut lobe = blend3_with(blend, self.bake.kernel, corners, b);
                 if half {
                     let mass = [0, 1, 2].map(|c| unit_mass(self.bake.kernel, corners[c], src[c]));
                     lobe = keep_mass(self.bake.kernel, lobe, corners, mass, b, dst);

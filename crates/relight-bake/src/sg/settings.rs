@@ -82,8 +82,8 @@ impl SgFitSettings {
 }
 
 /// One choice of the lobes' kernel, variable and order (the three fit settings that go
-/// together: the half-vector domain takes several lobes only nested, the GGX kernel several
-/// only in the half-vector domain; [`SgBakeSettings::validate`]).
+/// together: the half-vector domain takes several lobes only nested or additive, the GGX
+/// kernel several only in the half-vector domain; [`SgBakeSettings::validate`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LobeSetting {
     /// The lobes' radial shape.
@@ -103,7 +103,9 @@ impl LobeSetting {
         order: LobeOrder::Joint,
     };
 
-    /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md §8, sessions 26-28).
+    /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md §8, sessions 26-28;
+    /// additive lobes were measured as the default in session 37 and not kept: worse than
+    /// nested on Fig. 3-5 and the teapot under Kiara 1 Dawn at two and three lobes).
     pub const HALF_VECTOR_GGX: LobeSetting = LobeSetting {
         kernel: SgKernel::Ggx,
         domain: SgDomain::HalfVector,
@@ -436,7 +438,7 @@ mod tests {
     }
 
     /// The GGX kernel takes one light-domain lobe per component (more were measured worse);
-    /// more only in the half-vector domain with nested lobes.
+    /// more only in the half-vector domain with additive or nested lobes.
     #[test]
     fn the_ggx_kernel_takes_one_lobe_per_component() {
         let mut s = SgBakeSettings {

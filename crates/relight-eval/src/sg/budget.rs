@@ -546,7 +546,7 @@ fn blend_corners(
     let blended = (0..l[0].len())
         .map(|k| {
             blend3_with(
-                shade.views,
+                shade.view_blend(k),
                 kernel,
                 [0, 1, 2].map(|c| &l[c][p[c][k] as usize]),
                 w,

@@ -24,10 +24,11 @@ pub struct SgFrameSettings {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFrameSettings::default().prefilter_size))]
     pub prefilter_size: usize,
     /// How a vertex's lobes are blended across its three nearest views (`linear`: the
-    /// thesis' parameters; `energy`: integrals, shape weighted by energy) [default: linear,
-    /// or energy for a half-vector bake of two or more nested lobes]
+    /// thesis' parameters; `energy`: integrals, shape weighted by energy; `split`: the first
+    /// lobe linear, the later ones by energy) [default: linear; for a half-vector bake of two
+    /// or more lobes energy if nested, split if additive]
     #[cfg_attr(feature = "cli", arg(long = "sg-view-blend", value_enum))]
-    pub view_blend: Option<SgBlend>,
+    pub view_blend: Option<SgViewBlend>,
     /// How a pixel blends its triangle's three corners' lobes [default: energy for a bake
     /// in the light domain, linear for one in the half-vector domain]
     #[cfg_attr(feature = "cli", arg(long = "sg-corner-blend", value_enum))]
@@ -46,6 +47,19 @@ pub enum SgBlend {
     Linear,
     /// Energies linear, axis and sharpness weighted by energy.
     Energy,
+}
+
+/// The blend of a vertex's three nearest views.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum SgViewBlend {
+    /// Every lobe linear (the thesis, section 2.3).
+    Linear,
+    /// Every lobe by energy.
+    Energy,
+    /// Each component's first lobe linear, the later ones by energy (additive lobes:
+    /// `ShadeOptions::ADDITIVE_HALF_VECTOR`).
+    Split,
 }
 
 /// Which blends match lobes before blending.
@@ -67,6 +81,16 @@ impl std::fmt::Display for SgBlend {
         f.write_str(match self {
             SgBlend::Linear => "linear",
             SgBlend::Energy => "energy",
+        })
+    }
+}
+
+impl std::fmt::Display for SgViewBlend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SgViewBlend::Linear => "linear",
+            SgViewBlend::Energy => "energy",
+            SgViewBlend::Split => "split",
         })
     }
 }
@@ -98,8 +122,15 @@ impl SgFrameSettings {
                 matches!(m, SgMatch::Corners | SgMatch::Both),
             ),
         };
+        let (views, later_views) = match self.view_blend {
+            None => (by_bake.views, by_bake.later_views),
+            Some(SgViewBlend::Linear) => (LobeBlend::Linear, LobeBlend::Linear),
+            Some(SgViewBlend::Energy) => (LobeBlend::Energy, LobeBlend::Energy),
+            Some(SgViewBlend::Split) => (LobeBlend::Linear, LobeBlend::Energy),
+        };
         ShadeOptions {
-            views: self.view_blend.map_or(by_bake.views, blend),
+            views,
+            later_views,
             match_views,
             corners: self.corner_blend.map_or(by_bake.corners, blend),
             match_corners,
@@ -111,7 +142,8 @@ impl Default for SgFrameSettings {
     /// A 128-texel finest level; the renderer's default interpolation
     /// (`ShadeOptions::for_bake`: light-domain lobes views linear, corners by energy, matched
     /// in both blends; one half-vector lobe linear, unmatched; nested half-vector lobes
-    /// views by energy, corners linear, unmatched; the test `frame_settings_map_onto_the_renderers_interpolation`
+    /// views by energy, corners linear, unmatched; additive ones the same but the first
+    /// lobe's views linear; the test `frame_settings_map_onto_the_renderers_interpolation`
     /// keeps the two equal).
     fn default() -> Self {
         SgFrameSettings {

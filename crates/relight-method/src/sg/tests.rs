@@ -346,7 +346,7 @@ fn frame_settings_map_onto_the_renderers_interpolation() {
         }
     };
     for domain in [SgDomain::Light, SgDomain::HalfVector] {
-        for order in [LobeOrder::Joint, LobeOrder::Nested] {
+        for order in [LobeOrder::Joint, LobeOrder::Nested, LobeOrder::Additive] {
             for lobes in [1, 2] {
                 let b = bake(domain, order, lobes);
                 assert_eq!(
@@ -360,7 +360,7 @@ fn frame_settings_map_onto_the_renderers_interpolation() {
             }
         }
     }
-    for order in [LobeOrder::Joint, LobeOrder::Nested] {
+    for order in [LobeOrder::Joint, LobeOrder::Nested, LobeOrder::Additive] {
         assert_eq!(
             ShadeOptions::default_for(SgDomain::Light, order, 2),
             ShadeOptions::default()
@@ -380,8 +380,23 @@ fn frame_settings_map_onto_the_renderers_interpolation() {
         ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Nested, 3),
         ShadeOptions::NESTED_HALF_VECTOR
     );
+    // Additive ones: the first slot as one lobe is, the later ones' views by energy.
+    let additive = ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Additive, 2);
+    assert_eq!(additive, ShadeOptions::ADDITIVE_HALF_VECTOR);
+    assert_eq!(
+        (
+            additive.view_blend(0),
+            additive.view_blend(1),
+            additive.view_blend(2)
+        ),
+        (LobeBlend::Linear, LobeBlend::Energy, LobeBlend::Energy)
+    );
+    assert_eq!(
+        ShadeOptions::default_for(SgDomain::HalfVector, LobeOrder::Additive, 1),
+        ShadeOptions::PAPER
+    );
     let paper = SgFrameSettings {
-        view_blend: Some(SgBlend::Linear),
+        view_blend: Some(SgViewBlend::Linear),
         corner_blend: Some(SgBlend::Linear),
         matching: Some(SgMatch::None),
         ..Default::default()
@@ -391,14 +406,35 @@ fn frame_settings_map_onto_the_renderers_interpolation() {
         ShadeOptions::PAPER
     );
     let o = SgFrameSettings {
-        view_blend: Some(SgBlend::Energy),
+        view_blend: Some(SgViewBlend::Energy),
         corner_blend: Some(SgBlend::Linear),
         matching: Some(SgMatch::Corners),
         ..Default::default()
     }
     .shade_options(&bake(SgDomain::HalfVector, LobeOrder::Nested, 2));
     assert_eq!(
-        (o.views, o.match_views, o.corners, o.match_corners),
-        (LobeBlend::Energy, false, LobeBlend::Linear, true)
+        (
+            o.views,
+            o.later_views,
+            o.match_views,
+            o.corners,
+            o.match_corners
+        ),
+        (
+            LobeBlend::Energy,
+            LobeBlend::Energy,
+            false,
+            LobeBlend::Linear,
+            true
+        )
+    );
+    let split = SgFrameSettings {
+        view_blend: Some(SgViewBlend::Split),
+        ..Default::default()
+    }
+    .shade_options(&bake(SgDomain::HalfVector, LobeOrder::Nested, 2));
+    assert_eq!(
+        (split.views, split.later_views),
+        (LobeBlend::Linear, LobeBlend::Energy)
     );
 }

@@ -286,16 +286,16 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
     };
     let frame = |lobes| ShadeOptions::default_for(bake_sg::SgDomain::HalfVector, order, lobes);
     assert_eq!(frame(1), ShadeOptions::PAPER);
-    let nested = ShadeOptions::NESTED_HALF_VECTOR;
-    assert_eq!((frame(2), frame(3), frame(4)), (nested, nested, nested));
+    let more = frame(2);
+    assert_eq!((frame(3), frame(4)), (more, more));
     for (name, scene) in [
         ("sphere", sphere_scene()),
         ("shadowed highlight", shadowed_highlight_scene()),
     ] {
-        let (errors, noise) = errors_by_lobes(&scene, fit, &[ShadeOptions::PAPER, nested], 4);
+        let (errors, noise) = errors_by_lobes(&scene, fit, &[ShadeOptions::PAPER, more], 4);
         let default = [errors[0][0], errors[1][1], errors[1][2], errors[1][3]];
         eprintln!(
-            "{name}, {order:?}: relative RMSE by lobe count, default frame {default:?}; linear {:?}, views by energy {:?}; reference noise {noise:.4}",
+            "{name}, {order:?}: relative RMSE by lobe count, default frame {default:?}; linear {:?}, the frame of two or more {:?}; reference noise {noise:.4}",
             errors[0], errors[1]
         );
         assert!(
@@ -306,13 +306,14 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
 }
 
 /// Issue 10 item 1 with [`bake_sg::LobeOrder::Additive`] (each further lobe fitted alone to
-/// what the earlier ones leave, which stay put) through its default frame: each added lobe,
-/// up to four, no worse than one fewer within the reference's noise, on both small scenes.
-/// Measured 2026-12-05 (scratch build of the same fit): sphere 0.0750, 0.0742, 0.0733,
-/// 0.0732 (noise 0.0368; nested: up to 0.1249), shadowed highlight 0.2102, 0.2292, 0.2313,
-/// 0.2320 (noise 0.0363; nested: 0.2143, 0.2239, 0.2516): after the second lobe flat, where
-/// nested lobes keep drifting upward. Every blend linear gave the shadowed highlight 0.2220,
-/// 0.2241, 0.2250 for 2-4 lobes and the sphere 0.0752, 0.0741, 0.0741.
+/// what the earlier ones leave, which stay put), through its default frame (`ShadeOptions::ADDITIVE_HALF_VECTOR` from two lobes):
+/// each added lobe, up to four, no worse than one fewer within the reference's noise, on
+/// both small scenes. Measured 2026-12-05: sphere 0.0750, 0.0753, 0.0734, 0.0733 (noise
+/// 0.0368; nested: up to 0.1249), shadowed highlight 0.2102, 0.2179, 0.2198, 0.2204 (noise
+/// 0.0363; nested: 0.2143, 0.2239, 0.2516): after the second lobe flat, where nested lobes
+/// keep drifting upward. Session 36's additive fit (the residual of slot 1 before its
+/// peak was bounded, no gate) through the nested frame gave 0.2292, 0.2313, 0.2320 on the
+/// shadowed highlight (docs/RESULTS.md §8, session 37).
 #[test]
 fn additive_half_vector_lobes_are_never_worse() {
     half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive);

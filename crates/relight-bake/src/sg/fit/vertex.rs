@@ -317,7 +317,7 @@ fn view_order(c: &ComponentFit, targets: &[Option<ViewTarget>]) -> Vec<usize> {
 /// relative L2 error and the iterations spent. Only in the `first` sweep of a flood fill is
 /// a poor warm start checked against a greedy fit. The lobe order ([`LobeOrder`]) decides
 /// how `N >= 2` lobes are found in that sweep.
-fn fit_view(
+pub(super) fn fit_view(
     c: &ComponentFit,
     t: &ViewTarget,
     warm: Option<Vec<SgLobe>>,
@@ -365,10 +365,12 @@ fn first_of(sets: &[SgLobe], n: usize, k: usize) -> Vec<SgLobe> {
 ///   coherence terms of the first `k` slots; after each step the first `k - 1` slots are
 ///   matched to the previous step's lobes, so slot `k` is always the `k`-th lobe found.
 /// - [`LobeOrder::Additive`] (every sweep): slot `k` alone refined on the signed residual
-///   of slots `1..k-1` (`FitTarget::residual`), which stay as they are, from the warm
-///   start's slot `k` after the first sweep, else from a lobe on the residual, with the
-///   prior and neighbours of slot `k` and no energy term (the residual's integral is not
-///   the data's; the set is rescaled after, [`shape`]).
+///   of slots `1..k-1` (`FitTarget::residual`, of the lobes with their peaks bounded as
+///   [`shape`] bounds them), which stay as they are, from the warm start's slot `k` after
+///   the first sweep, else from a lobe on the residual, with the prior and neighbours of
+///   slot `k` and no energy term (the residual's integral is not the data's; the set is
+///   rescaled after, [`shape`]). A lobe that leaves the residual no smaller gets zero
+///   amplitude: its view's fit is never worse than with `k - 1` lobes.
 ///
 /// Returns the lobes, the relative L2 error of the whole set and the iterations.
 fn fit_slots(
@@ -412,6 +414,13 @@ fn fit_slots(
         };
         let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
         if additive {
+            // The residual of the earlier lobes as they will be stored: a half-vector lobe's
+            // peak is bounded after the fit ([`clamp_peak`]), and an unbounded one (its axis
+            // beyond the view's reachable half vectors, fitting the data with its tail) would
+            // leave a residual thousands of times the data's norm.
+            if t.view.is_some() {
+                clamp_peak(&mut cur, t);
+            }
             let resid = t.target.residual(&cur, &opts);
             // From the residual itself: the earlier lobes are already subtracted.
             let start = match &warm {
@@ -422,9 +431,17 @@ fn fit_slots(
             let p = prior.as_ref().map(|p| p[k - 1..k].to_vec());
             let f = sg_fit::refine_arranged(&resid, &start, &opts, p.as_deref(), arr);
             iterations += f.iterations;
-            // The solver's error is relative to the residual's norm.
-            err = f.relative_error * (resid.norm2() / t.target.norm2()).sqrt();
-            cur.push(f.lobes[0]);
+            // The solver's error is relative to the residual's norm. A lobe that leaves the
+            // residual no smaller (its coherence terms pulled it off the data) is not kept.
+            let left = (resid.norm2() / t.target.norm2()).sqrt();
+            let mut lobe = f.lobes[0];
+            if f.relative_error < 1.0 {
+                err = f.relative_error * left;
+            } else {
+                lobe.amplitude = Vec3::ZERO;
+                err = left;
+            }
+            cur.push(lobe);
             continue;
         }
         let mut start = cur.clone();
