@@ -85,16 +85,6 @@ impl std::fmt::Display for SgBlend {
     }
 }
 
-impl std::fmt::Display for SgViewBlend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            SgViewBlend::Linear => "linear",
-            SgViewBlend::Energy => "energy",
-            SgViewBlend::Split => "split",
-        })
-    }
-}
-
 impl std::fmt::Display for SgMatch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
