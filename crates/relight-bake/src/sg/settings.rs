@@ -105,7 +105,8 @@ impl LobeSetting {
 
     /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md §8, sessions 26-28;
     /// additive lobes were measured as the default in session 37 and not kept: worse than
-    /// nested on Fig. 3-5 and the teapot under Kiara 1 Dawn at two and three lobes).
+    /// nested on Fig. 3-5 and the teapot under Kiara 1 Dawn at two and three lobes; two
+    /// other residual orders, session 38, broke St Peter's or gained nothing).
     pub const HALF_VECTOR_GGX: LobeSetting = LobeSetting {
         kernel: SgKernel::Ggx,
         domain: SgDomain::HalfVector,
