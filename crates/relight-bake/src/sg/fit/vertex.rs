@@ -398,8 +398,16 @@ fn fit_slots(
         return solve_view(c, n, t, warm, prior, spatial, true);
     }
     let mut opts = weighted_options(c, t);
+    // Additive residuals are of the earlier lobes as they will be stored: a half-vector lobe's
+    // peak is bounded after the fit ([`clamp_peak`]), and an unbounded one (its axis beyond
+    // the view's reachable half vectors, fitting the data with its tail) would leave a
+    // residual thousands of times the data's norm. Each lobe is bounded once, as it is added.
+    let bound = additive && t.view.is_some();
     if additive {
         opts.energy = None;
+    }
+    if bound {
+        clamp_peak(&mut cur, t);
     }
     for k in 2..=n {
         // The neighbours' slot `k` (additive) or first `k` slots (nested).
@@ -414,13 +422,6 @@ fn fit_slots(
         };
         let arr = (!sp.is_empty() && c.settings.spatial_weight > 0.0).then_some(&arr);
         if additive {
-            // The residual of the earlier lobes as they will be stored: a half-vector lobe's
-            // peak is bounded after the fit ([`clamp_peak`]), and an unbounded one (its axis
-            // beyond the view's reachable half vectors, fitting the data with its tail) would
-            // leave a residual thousands of times the data's norm.
-            if t.view.is_some() {
-                clamp_peak(&mut cur, t);
-            }
             let resid = t.target.residual(&cur, &opts);
             // From the residual itself: the earlier lobes are already subtracted.
             let start = match &warm {
@@ -440,6 +441,9 @@ fn fit_slots(
             } else {
                 lobe.amplitude = Vec3::ZERO;
                 err = left;
+            }
+            if bound {
+                clamp_peak(std::slice::from_mut(&mut lobe), t);
             }
             cur.push(lobe);
             continue;
