@@ -22,3 +22,7 @@ echo "== python: tools/test_mitsuba_reference.py"
 # refuses --gpu and `view` by name.)
 echo "== cargo test --release --workspace --features relight-cli/view"
 cargo test --release --workspace --features relight-cli/view
+# The API documentation builds without warnings: a broken intra-doc link fails here. With the
+# features of the tests, so that the optional crates (relight-gpu, relight-view) are checked too.
+echo "== cargo doc --release --workspace --no-deps --features relight-cli/view (RUSTDOCFLAGS=-D warnings)"
+RUSTDOCFLAGS="-D warnings" cargo doc --release --workspace --no-deps --features relight-cli/view

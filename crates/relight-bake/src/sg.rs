@@ -160,47 +160,46 @@ impl SgBake {
     }
 }
 
-/// How the fit finds `N >= 2` lobes per (vertex, view) in the flood fill (issue 10; the
-/// measurements are in docs/RESULTS.md §8).
+/// How the fit finds `N >= 2` lobes per (vertex, view) in the flood fill (the measurements
+/// are in docs/RESULTS.md, section sg).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LobeOrder {
     /// All `N` lobes refined together from the warm start (the neighbour's lobes), then
-    /// permuted to match the neighbours: the paper's fit (eq. 2.2), and every bake before
-    /// issue 10, and the default (docs/RESULTS.md §8: in the light domain nested made the
-    /// 2-lobe renders worse). The half-vector domain refuses it beyond one lobe (jointly
-    /// fitted half-vector lobes got worse with each added lobe, session 28).
+    /// permuted to match the neighbours: the paper's fit (eq. 2.2), and the default (in the
+    /// light domain nested made the 2-lobe renders worse). The half-vector domain refuses it
+    /// beyond one lobe (jointly fitted half-vector lobes got worse with each added lobe).
     #[default]
     Joint,
     /// Lobe `k` added on the residual of the first `k - 1` and all `k` refined, `k = 1..N`:
     /// slot 1 starts as the one-lobe fit's lobe, slot `k` is the `k`-th one found, and the
     /// fit of `N` lobes starts from the fit of `N - 1`. The joint refinement moves slot 1
-    /// away from the one-lobe fit (docs/RESULTS.md §8, session 32). The half-vector
+    /// away from the one-lobe fit. The half-vector
     /// domain's default (`settings::LobeSetting::HALF_VECTOR_GGX`).
     Nested,
     /// Lobe `k` fitted alone to the signed residual of the first `k - 1`, which stay as they
     /// were (in every sweep): slot 1 is the one-lobe fit's lobe in shape, and the `N`-lobe
     /// set is the `N - 1` set plus one, all rescaled together to the data's integral. Nested
-    /// lobes' joint refinement moves slot 1 (17-27 % in amplitude on the small test sphere,
-    /// docs/RESULTS.md §8, session 32), which made extra lobes cost on the small test
-    /// scenes; these do not move it (session 36). A residual lobe that leaves the residual
-    /// no smaller is dropped (zero amplitude), and the residual is taken of the earlier
-    /// lobes with their peaks bounded as they are stored (session 37). Not the default:
+    /// lobes' joint refinement moves slot 1 (17-27 % in amplitude on the small test sphere),
+    /// which made extra lobes cost on the small test scenes; these do not move it. A
+    /// residual lobe that leaves the residual no smaller is dropped (zero amplitude), and the
+    /// residual is taken of the earlier lobes with their peaks bounded as they are stored.
+    /// Not the default:
     /// better than nested on the small test scenes from three lobes, flat on St Peter's and
     /// the Spot conductors, but 0.8-1.0 points worse than nested on Fig. 3-5 and the teapot
-    /// under Kiara 1 Dawn at two and three lobes (docs/RESULTS.md §8, session 37).
+    /// under Kiara 1 Dawn at two and three lobes.
     Additive,
 }
 
-/// The shape each (vertex, view)'s lobes are given after the least-squares fit (issue 10;
-/// the measurements are in docs/RESULTS.md §8).
+/// The shape each (vertex, view)'s lobes are given after the least-squares fit (the
+/// measurements are in docs/RESULTS.md, section sg).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum LobeShape {
     /// The least-squares lobes (eq. 3.1), amplitudes rescaled to the data's integral
-    /// ([`SgFitSettings::energy`]): every bake before this setting existed.
+    /// ([`SgFitSettings::energy`]); a bundle without this field holds these.
     #[default]
     LeastSquares,
     /// The least-squares lobes moved to the moments of their share of the data
@@ -211,13 +210,13 @@ pub enum LobeShape {
     Moments,
 }
 
-/// The radial shape of the fitted lobes (issue 10 item 3; [`relight_sphere::sg_kernel`]).
+/// The radial shape of the fitted lobes ([`relight_sphere::sg_kernel`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SgKernel {
-    /// Green 2005's spherical Gaussian `exp(lambda (mu . v - 1))`: every bake before this
-    /// setting existed.
+    /// Green 2005's spherical Gaussian `exp(lambda (mu . v - 1))` (eq. 2.1); a bundle without
+    /// this field holds these.
     #[default]
     Gaussian,
     /// The heavy-tailed kernel `~ (1 + lambda (1 - mu . v) / 2)^-2` of a GGX lobe (four
@@ -236,13 +235,13 @@ impl SgKernel {
     }
 }
 
-/// The variable of the fitted lobes (issue 10 item 3; [`relight_sphere::half_vector`]).
+/// The variable of the fitted lobes ([`relight_sphere::half_vector`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SgDomain {
-    /// `a K(1 - mu . w)` in the light direction `w` (Green 2005): every bake before this
-    /// setting existed.
+    /// `a K(1 - mu . w)` in the light direction `w` (Green 2005); a bundle without this
+    /// field holds these.
     #[default]
     Light,
     /// `a K(1 - mu . h(w))` in the half vector `h(w) = normalize(w + v)` of the view `v`: a
@@ -250,17 +249,17 @@ pub enum SgDomain {
     /// plane of incidence at grazing views. Rendered with five prefiltered lookups per
     /// Gaussian term (`relight_sphere::half_vector`); more than one lobe per component only
     /// [`LobeOrder::Additive`] or [`LobeOrder::Nested`] (jointly fitted ones were measured
-    /// worse with each added lobe, docs/RESULTS.md §8 session 28).
+    /// worse with each added lobe).
     HalfVector,
 }
 
-/// Where the flood fill starts the fit of a (vertex, view) in its first sweep (issue 10).
+/// Where the flood fill starts the fit of a (vertex, view) in its first sweep.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum FitStart {
     /// From the lobes of the neighbour the vertex was reached from (the same view), a greedy
-    /// fit only if that ends poorly: every bake before issue 10.
+    /// fit only if that ends poorly (Green 2005, sec. 2.2.2's flood fill).
     #[default]
     Neighbour,
     /// From the greedy fit of the view's own data (`sg_fit::fit`), permuted to match the
@@ -291,7 +290,7 @@ pub struct SgFitSettings {
     pub spatial_weight: f64,
     /// Relaxation sweeps after the flood fill (the paper's suggested future work, sec. 3.4).
     /// Default 0: on the armadillo one sweep removes 18 % of the flips for about a quarter
-    /// more bake time (docs/RESULTS.md §8).
+    /// more bake time.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = SgFitSettings::default().relax_sweeps))]
     pub relax_sweeps: usize,
     /// Weight of the energy term of the fit (`relight_sphere::sg_fit` docs), relative: an

@@ -77,8 +77,8 @@ pub struct Args {
     /// The shared data folder (default probes of --method hybrid); default: $RELIGHT_SHARED.
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// SG: also compute the error budget of every bake (each approximation of the frame in
-    /// turn, docs/RESULTS.md §8; renders a direct-lighting reference for experiments with
+    /// SG: also compute the error budget of every bake (the error of each approximation of
+    /// the frame in turn; renders a direct-lighting reference for experiments with
     /// interreflections).
     #[arg(long)]
     pub budget: bool,

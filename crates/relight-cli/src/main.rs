@@ -10,6 +10,7 @@ mod bake;
 mod compare;
 mod decompose;
 mod eval;
+mod help_markdown;
 mod info;
 mod reference;
 mod render;
@@ -70,6 +71,9 @@ enum Cmd {
         #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
         args: Vec<String>,
     },
+    /// Print the command-line reference (every verb, option and default) as Markdown.
+    #[command(hide = true)]
+    HelpMarkdown,
 }
 
 /// Arguments of `relight demo`.
@@ -200,6 +204,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
             out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);
         }
+        Cmd::HelpMarkdown => println!("{}", help_markdown::markdown(Cli::command())),
         #[cfg(feature = "view")]
         Cmd::View(a) => relight_view::cli::run_cli(a)?,
         #[cfg(not(feature = "view"))]

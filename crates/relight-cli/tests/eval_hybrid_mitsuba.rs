@@ -1,4 +1,4 @@
-//! Issue 3 check (the thesis' Table 5.1 experiment, small): the Utah teapot on a table under
+//! The hybrid method (the thesis' Table 5.1 experiment, small): the Utah teapot on a table under
 //! five probes, direct lighting, against Mitsuba 3. Skips when ../shared or Mitsuba is absent.
 //!
 //! Asserted, per probe:

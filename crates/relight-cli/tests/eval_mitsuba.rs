@@ -1,4 +1,4 @@
-//! Issue check 7(c): image-level SH PRT (shadowed transfer) against Mitsuba 3 at
+//! Image-level SH PRT (shadowed transfer) against Mitsuba 3 at
 //! max_depth 2, for the bunny under Grace and the teapot under St Peter's, SH orders 2..10.
 //! Skips with a printed reason when ../shared or Mitsuba 3 is absent.
 //!

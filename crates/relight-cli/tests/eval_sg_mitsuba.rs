@@ -1,7 +1,7 @@
-//! Issue 4 check (Green 2005 Fig. 3-4 and 3-5, small): `relight eval --method sg` against
+//! Green 2005 Fig. 3-4 and 3-5, small: `relight eval --method sg` against
 //! Mitsuba 3. Skips when ../shared or Mitsuba is absent.
 //!
-//! Asserted (tolerances measured at these settings, see docs/RESULTS.md §8 for the full run):
+//! Asserted (tolerances measured at these settings, see docs/RESULTS.md, sg, for the full run):
 //! * Fig. 3-4: the SG render of a GGX conductor (with interreflections) and of a GGX plastic
 //!   (direct) is within `TOL_34` relative RMSE of Mitsuba. Against a 512-spp reference the SG
 //!   error itself is 22 % (conductor: one lobe smooths the windows' reflections) and 11 %
@@ -40,7 +40,7 @@ fn sg_renders_match_mitsuba_and_beat_environment_mapping_in_shadow() {
             "96",
             "--indirect-paths",
             "16",
-            // Fig. 3-4 and 3-5 (the fourth default experiment, issue 10's teapot, is checked
+            // Fig. 3-4 and 3-5 (the fourth default experiment, the teapot, is checked
             // at test size by relight-render's `more_direct_lobes_are_never_worse`).
             "--experiments",
             "fig3-4_conductor,fig3-4_plastic,fig3-5_shadowed_highlight",

@@ -1,4 +1,4 @@
-//! Issue 9's command-line items: every value that drives an allocation or a computation is
+//! Hostile command lines: every value that drives an allocation or a computation is
 //! checked before any work, and nonsense is refused with the option named (no abort, no
 //! black image with exit 0, no partial output).
 

@@ -36,7 +36,7 @@
 //!     on a tabulation, over a level of views (the paper's 2 s against 47 s).
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial
 //!     refinement against a fixed level-1 bake of the same mesh, then its 512 x 512 CPU frame
-//!     against `sg`'s and SH's frames of the same mesh and camera (issue 12 item 8).
+//!     against `sg`'s and SH's frames of the same mesh and camera.
 //! 14. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 (cuts: 320 x 180) against the CPU
 //!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!

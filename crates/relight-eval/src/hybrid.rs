@@ -13,7 +13,7 @@
 //! Metrics over the pixels fully covered by geometry: Table 5.1's mean and standard deviation
 //! of the absolute per-pixel luminance error, and the relative RMSE.
 //!
-//! Error budget (docs/RESULTS.md section 5): every row also carries the reference's own noise
+//! Error budget (docs/RESULTS.md, hybrid): every row also carries the reference's own noise
 //! *in the metric* ([`crate::reference::Reference::lum_noise`]), the mean absolute luminance
 //! error a perfect renderer would score against the two seeds' mean. Several SH orders come
 //! from one bake (the SH basis is hierarchical), and `reference_spp` renders a second, better

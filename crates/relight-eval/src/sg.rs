@@ -16,7 +16,7 @@
 //!   visibility matters (the two renders differ by more than 10 % of the reference's mean
 //!   luminance), where the baseline shows the highlights the occluder blocks.
 //!
-//! * **Lobe counts** (issue 10): every experiment is baked and scored once per direct lobe
+//! * **Lobe counts**: every experiment is baked and scored once per direct lobe
 //!   count of [`SgEval::lobes`] (`relight eval --method sg --direct-lobes 1,2,3`) against the
 //!   same reference, and a second table lists the relative RMSE per lobe count: more lobes
 //!   must never be worse.
@@ -78,10 +78,10 @@ pub const DEFAULT_SCENES: [&str; 4] = [
 
 /// Fig. 3-4 (conductor and plastic on Spot), Fig. 3-5 (the shadowed highlight), a glossy
 /// GGX conductor (alpha 0.2) teapot under an outdoor probe (Poly Haven's Kiara 1 Dawn,
-/// direct lighting; issue 10's case) and a GGX conductor (alpha 0.15) sphere on a Lambert
-/// floor under St Peter's (direct lighting; the scene on which issue 10's defaults were
-/// checked after being chosen on the others), from the example scenes in `examples` (the
-/// repository's `examples/` folder).
+/// direct lighting; a glossy reflection that stretches at grazing views) and a GGX
+/// conductor (alpha 0.15) sphere on a Lambert floor under St Peter's (direct lighting; a
+/// held-out scene: the lobe defaults were checked on it after being chosen on the others),
+/// from the example scenes in `examples` (the repository's `examples/` folder).
 pub fn default_experiments(examples: &Path) -> Vec<Experiment> {
     let ex = |name: &str, file: &str, material, indirect, baseline| Experiment {
         name: name.into(),
@@ -210,11 +210,11 @@ pub struct Row {
     /// Relative RMSE of SG against Mitsuba.
     pub rel_rmse: f64,
     /// Relative RMSE of the same bake rendered with the thesis' interpolation
-    /// ([`ShadeOptions::PAPER`]: linear parameters, slot `k` with slot `k`), the frame before
-    /// issue 10.
+    /// ([`ShadeOptions::PAPER`]: linear parameters, slot `k` with slot `k`; Green 2005,
+    /// sec. 2.3).
     pub rel_rmse_paper_blend: f64,
     /// Relative RMSE of the same bake rendered with energy blends of matched lobes across
-    /// views and corners ([`ShadeOptions::ENERGY`]), the frame of 2026-12-01.
+    /// views and corners ([`ShadeOptions::ENERGY`]).
     pub rel_rmse_energy_blend: f64,
     /// Mean absolute luminance error.
     pub mean_abs_lum_err: f64,
@@ -368,7 +368,7 @@ fn run_one(
             &r,
             &mask,
         )?;
-        // The same bake with the thesis' frame and with the energy frame of 2026-12-01.
+        // The same bake with the thesis' frame and with the energy frame.
         let mut other = [0.0; 2];
         for (e, (name, options)) in other.iter_mut().zip([
             ("paper", ShadeOptions::PAPER),
@@ -556,10 +556,10 @@ fn table(rows: &[Row], e: &SgEval) -> String {
 }
 
 /// Relative RMSE per experiment (rows) and direct lobe count (columns), with the
-/// reference's noise: more lobes must not be worse (issue 10).
+/// reference's noise: more lobes must not be worse.
 fn lobe_table(rows: &[Row], lobes: &[usize]) -> String {
     let mut md = String::from(
-        "\nRelative RMSE against Mitsuba by direct lobe count: the frame / the same bake with the thesis' interpolation (linear parameters, no lobe matching) / with energy blends of matched lobes (the frame of 2026-12-01)\n\n| experiment | reference noise |",
+        "\nRelative RMSE against Mitsuba by direct lobe count: the frame / the same bake with the thesis' interpolation (linear parameters, no lobe matching) / with energy blends of matched lobes\n\n| experiment | reference noise |",
     );
     for l in lobes {
         let _ = write!(md, " {l} lobe{} |", if *l == 1 { "" } else { "s" });
@@ -586,7 +586,7 @@ fn lobe_table(rows: &[Row], lobes: &[usize]) -> String {
             );
         }
         // Lobe counts in increasing order; each no worse than the one before within the
-        // reference's noise (issue 10).
+        // reference's noise.
         let mut sorted = lobes.to_vec();
         sorted.sort_unstable();
         let errs: Vec<f64> = sorted

@@ -301,8 +301,7 @@ fn fit_sg_incremental(
     let target = FitTarget::new(dirs, &w32, &vals);
     let opts = FitOptions {
         // sigma down to half a face-centre texel (1 / n rad): the thin side of lobe (c) is
-        // about that wide. sg_fit's advice, (n / 2)^2, would forbid the data's own width
-        // (docs/RESULTS-sg-basis.md has the run with that bound).
+        // about that wide. sg_fit's advice, (n / 2)^2, would forbid the data's own width.
         lambda_max: SG_LAMBDA_MAX_PER_TEXEL2 * (n * n) as f32,
         // Errors are reported to 3 digits: stop refining at 1e-4 relative progress.
         tolerance: 1e-4,

@@ -3,7 +3,7 @@
 //! The `sh`, `hybrid`, `sg` and `cuts` frames of `relight-method` on the GPU: the same inputs (a
 //! bake, an environment, a camera, [`FrameOptions`]) and the same output (a linear-radiance
 //! [`Image`] plus per-pixel coverage), so a GPU frame is compared with the CPU frame pixel
-//! by pixel. The interactive viewer (issue 13, phase 2) will draw with these frames.
+//! by pixel. The interactive viewer (`relight-view`) draws with these frames.
 //!
 //! | method | once per environment | per frame |
 //! |---|---|---|

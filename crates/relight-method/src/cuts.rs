@@ -1,4 +1,4 @@
-//! The `cuts` method (Cheslack-Postava et al. 2008, issue 11): the bake is
+//! The `cuts` method (Cheslack-Postava et al. 2008): the bake is
 //! `relight_bake::cuts` (light samples, light tree, per-vertex visibility cuts), the frame
 //! `relight_render::shade_cuts` (per pixel: three vertex cuts merged with the frame's
 //! illumination cut and the scene's materials evaluated at run time).
@@ -32,7 +32,7 @@ impl Method for Cuts {
     }
 
     /// An upper bound: a cut of `max_cut` nodes (index, leftmost leaf, value: 10 bytes each)
-    /// and its offset. Real cuts are far shorter (docs/RESULTS.md §11).
+    /// and its offset. Real cuts are far shorter (docs/RESULTS.md, section cuts).
     fn row_bytes(_: BakeInput, s: &CutsBakeSettings) -> u64 {
         8 + 10 * u64::from(s.max_cut)
     }

@@ -34,7 +34,7 @@ pub struct LightExtraction {
     /// Elbow threshold (thesis Fig. 4.5): keep a light while its luminance exceeds this
     /// fraction of the running total. Default 0.02 (the thesis' own is 0.05): St Peter's many
     /// dim windows are cut to 10 by the elbow at 0.05; with 16 lights the hybrid's error
-    /// against an 8192-spp reference falls from 0.0115 to 0.0083 (docs/RESULTS.md section 5).
+    /// against an 8192-spp reference falls from 0.0115 to 0.0083.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = LightExtraction::default().threshold))]
     pub threshold: f32,
     /// At most this many lights (one shadow map each). Default 16 (see `threshold`).
@@ -181,7 +181,7 @@ pub fn decompose_env(
 /// relight's lights (`thesis = false`) are the size of the radiance their cap removed
 /// ([`ExtractedLight::extent`], at most the cap radius): a 2-degree window extracted with a
 /// 5-degree cap casts the penumbrae of a 2-degree source (St Peter's, 16 lights: hybrid error
-/// 0.0098 -> 0.0083 against an 8192-spp reference, docs/RESULTS.md section 5). The thesis'
+/// 0.0098 -> 0.0083 against an 8192-spp reference, docs/RESULTS.md, section hybrid). The thesis'
 /// point lights keep the cap radius (unused by their hard shadows and plain cosine). Each
 /// light's irradiance at normal incidence is that of a uniform disc of its radius `r` holding
 /// the removed power: `power (1 + cos r) / 2` (`pi sin^2 r / (2 pi (1 - cos r))`).

@@ -23,7 +23,7 @@ pub const ACCEL_BYTES_PER_TRIANGLE: u64 = 128;
 
 /// Share of the limit kept for what the model does not see (allocator slack, thread stacks,
 /// the ray caster's build temporaries): chunks are sized to `(1 - 1/RESERVE_DIVISOR)` of it.
-/// A 1.36M-vertex bake sized to the whole limit peaked 2.2 % over it (docs/RESULTS.md).
+/// A 1.36M-vertex bake sized to the whole limit peaked 2.2 % over it.
 pub const RESERVE_DIVISOR: u64 = 8;
 
 /// How a bake fits in its budget.

@@ -1,5 +1,5 @@
 //! The `vmf` method (Laurijssen & Dutré 2009, "Adaptive Precomputation of Glossy
-//! Interreflections"; issue 12): the bake is `relight_bake::vmf` (per vertex, transfer slices
+//! Interreflections"): the bake is `relight_bake::vmf` (per vertex, transfer slices
 //! of one vMF lobe per light-path class for the views of an icosahedral level, sections 3-5),
 //! the frame `relight_render::shade_vmf` (eq. 6 interpolation across views and triangles,
 //! lookup in a vMF-prefiltered environment chain whose kappa doubles per level, section

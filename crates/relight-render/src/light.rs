@@ -1,4 +1,5 @@
-//! Point and spot lights (local lighting of the `cuts` method, issue 11 item 7; the path
+//! Point and spot lights (local lighting of the `cuts` method, Cheslack-Postava et al. 2008
+//! sec. 4.2; the path
 //! tracer's next-event estimation uses the same definitions).
 //!
 //! Conventions (stated once, here):

@@ -61,7 +61,7 @@
 //!   smooth-shaded mesh, a UV shear across triangles). Curved meshes were measured before
 //!   that refusal: a UV sphere (24 x 48) with the test's ripple map, Lambert, differs from
 //!   Mitsuba by about 1.5 % relative RMS, within the noise at 512 spp (1.12 x the floor) but
-//!   not at 4096 (1.53 x; docs/RESULTS.md, section 11).
+//!   not at 4096 (1.53 x).
 
 use crate::image::Image;
 use relight_scene::error::SceneError;

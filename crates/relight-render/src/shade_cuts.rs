@@ -186,8 +186,7 @@ impl<'a> CutsShader<'a> {
     ///   per fragment, the three corners' lists summed with the barycentric weights (Eq. 5
     ///   summed by corner, module docs of `shade_cuts::corners`). Equal to the triangle merge
     ///   over cuts holding the cosine (tested); over binary visibility the cosine is sampled
-    ///   at each corner's own clusters, no further from the path tracer (tested,
-    ///   docs/RESULTS.md §11);
+    ///   at each corner's own clusters, no further from the path tracer (tested);
     /// * other materials as [`CutsShader::render_merged`] (for glossy lobes the corners'
     ///   coarser clusters measured further from the path tracer), each triangle's merged cut
     ///   from its kept visibility union and the light cut's tables (`shade_cuts::cache`: the

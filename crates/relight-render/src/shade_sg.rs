@@ -18,7 +18,7 @@
 //!    plus the Gouraud-interpolated diffuse radiance. A bake with the GGX-shaped lobe kernel
 //!    (`SgBake::kernel`, [`relight_sphere::sg_kernel`]) takes one such fetch per Gaussian term
 //!    of the kernel (four), and its energies use the kernel's integral. A bake in the
-//!    **half-vector domain** (`SgBake::domain`, `--lobe-domain half-vector`; issue 10 item 3)
+//!    **half-vector domain** (`SgBake::domain`, `--lobe-domain half-vector`)
 //!    has lobes `a K(1 - mu . h(w))`, `h(w) = normalize(w + v)`: each Gaussian term is
 //!    integrated for the fragment's own view `v = normalize(eye - x)` with the five tabulated
 //!    isotropic Gaussians of [`relight_sphere::half_vector`] (five fetches per term, twenty
@@ -43,14 +43,14 @@
 //!   and sharpnesses linear, [`blend3`]), and the three **corners** of a pixel's triangle by
 //!   **energy** ([`blend3_energy`]: the blend's integral `a int G` is the barycentric mean of
 //!   the corners', axis and sharpness weighted by each corner's energy). Why each choice,
-//!   measured on five scenes against Mitsuba (docs/RESULTS.md §8, issue 10): without the
+//!   measured on five scenes against Mitsuba (docs/RESULTS.md, section sg): without the
 //!   view matching, two lobes whose slots swap between views lost 17 % of the teapot-dawn
 //!   conductor's light (error 13 % -> 56 % from one lobe to two); an energy blend across
 //!   views made more lobes *worse* on Fig. 3-5's shadowed highlight (28.5 / 61.9 / 45.9 % for
 //!   1 / 2 / 3 lobes; linear matched views: 33.4 / 19.7 / 19.9 %); the corners' energy
 //!   blend keeps a triangle's light the mean of its corners' where a corner's lobe is
 //!   switched off. [`ShadeOptions::PAPER`] is the thesis' frame (linear, slot `k` with slot
-//!   `k`) and [`ShadeOptions::ENERGY`] the default of 2026-12-01 (energy blends everywhere).
+//!   `k`) and [`ShadeOptions::ENERGY`] energy blends everywhere.
 //!   The linear blend's energy `(sum w a) / (sum w lambda)` is a weighted mean of the
 //!   corners' `a_j / lambda_j` (weights `w_j lambda_j`), dominated by the sharpest corner.
 //! * Radiance: `L(w) = scale * map(env_from_world w)`, as `Environment::radiance`.
@@ -423,7 +423,7 @@ pub struct SgTimes {
 
 /// How the frame interpolates lobes ([`LobeBlend`], [`match_corners`]): across the three
 /// nearest views at a vertex, and across a triangle's three corners at a pixel. The default
-/// (issue 10, chosen by the figures of docs/RESULTS.md §8; module docs) matches lobes
+/// (chosen by the figures of docs/RESULTS.md, section sg; module docs) matches lobes
 /// everywhere, blends views linearly and corners by energy (a half-vector bake's corners
 /// linearly: [`ShadeOptions::default_for`]);
 /// [`ShadeOptions::PAPER`] is the thesis' plain barycentric blend of slot `k` with slot `k`.
@@ -452,7 +452,7 @@ impl ShadeOptions {
         corners: LobeBlend::Linear,
         match_corners: false,
     };
-    /// Energy blends of matched lobes across views and corners (the default of 2026-12-01).
+    /// Energy blends of matched lobes across views and corners.
     pub const ENERGY: ShadeOptions = ShadeOptions {
         views: LobeBlend::Energy,
         later_views: LobeBlend::Energy,
@@ -496,7 +496,7 @@ impl ShadeOptions {
     /// [`Self::default`] for light-domain lobes. Half-vector lobes keep their integrals
     /// across both blends ([`keep_mass`]), so the corners' energy blend only weights their
     /// shapes by energy; blending them linearly instead measured better on all five scenes
-    /// of the evaluation, by 0 to 1.7 points (docs/RESULTS.md §8, session 27: the Spot
+    /// of the evaluation, by 0 to 1.7 points (docs/RESULTS.md, section sg: the Spot
     /// conductor 10.9 -> 9.2 %). Half-vector bakes of two or more lobes are nested or
     /// additive (the settings refuse others): slot 1 is fitted first at every (vertex,
     /// view) and slot `k` is the `k`-th lobe found, so the slots already correspond and
@@ -509,9 +509,9 @@ impl ShadeOptions {
     /// and 8.3 %). Nested lobes blend slot 1 by energy too ([`Self::NESTED_HALF_VECTOR`]):
     /// their joint refinement moves it away from the one-lobe fit, and blended linearly it
     /// brought St Peter's blotches back (10.97 % at two lobes). Additive lobes keep slot 1
-    /// the one-lobe fit, so it is blended as one lobe is ([`Self::ADDITIVE_HALF_VECTOR`];
-    /// docs/RESULTS.md §8, session 37). Matching as well (the energy frame) broke the small
-    /// sphere test (13.0 % at two lobes against 7.5 % at one; session 29).
+    /// the one-lobe fit, so it is blended as one lobe is ([`Self::ADDITIVE_HALF_VECTOR`]).
+    /// Matching as well (the energy frame) broke the small sphere test (13.0 % at two lobes
+    /// against 7.5 % at one).
     pub fn default_for(domain: SgDomain, order: LobeOrder, lobes: usize) -> ShadeOptions {
         match (domain, order) {
             (SgDomain::Light, _) => ShadeOptions::default(),

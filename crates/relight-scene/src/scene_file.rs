@@ -106,7 +106,7 @@ pub enum ShapeDesc {
         material: Option<MaterialDesc>,
         /// Levels of midpoint subdivision after loading (1 to
         /// [`meshops::MAX_SUBDIVISION`]; each multiplies the triangles by 4): a dense mesh
-        /// from a shared one (the 1M-vertex bake of docs/RESULTS.md).
+        /// from a shared one (for bakes of a million vertices and more).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         subdivide: Option<u32>,
     },

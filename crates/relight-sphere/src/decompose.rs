@@ -1,6 +1,7 @@
 //! Decomposition of an environment into a low-order SH part plus a few cap lights: the
 //! two-scale model of the hybrid thesis (ch. 4.3, Eq. 4.1), `E ~ P E + sum_j lambda_j phi_j`,
-//! with the improvements of issue 3 (caps removed from the SH part, cosine over the cap).
+//! with two changes to the thesis' model (caps removed from the SH part, cosine over the
+//! cap).
 //!
 //! # Algorithm (thesis 4.3.3, with the choices made here)
 //! 1. **Sample** (4.3.3 "Spherical Function Sampling"). The map's quadrature samples
@@ -41,7 +42,7 @@
 //!    * `remove_caps = false` (thesis): `power = sum_{t in cap} max(L_t - P(dir_t), 0) w_t`,
 //!      and the SH part is the projection of the *whole* map: the lights' energy is counted
 //!      twice (see [`Decomposition::double_counted`]).
-//!    * `remove_caps = true` (default, issue 3 item 4): the background inside the cap is the
+//!    * `remove_caps = true` (default): the background inside the cap is the
 //!      per-channel median of the ring `R < angle <= R_rim` around it
 //!      (`R_rim = max(1.5 R, R + 2 texel spacings)`; a median ignores a neighbouring light in
 //!      the ring); each cap texel gives
@@ -271,8 +272,8 @@ impl ExtractedLight {
 /// `cos_alpha = n . centre` with the normal: `(1 + cos r) cos_alpha / 2` when the cap is above
 /// the horizon, otherwise the horizon-clipped form factor of a spherical cap (Snyder 1996;
 /// Lagarde & de Rousiers 2014, "Moving Frostbite to PBR", eq. 18), divided by the cap's solid
-/// angle. Multiply a light's `power` by it to get irradiance (issue 3 item 4: "handle the
-/// cosine over the cap").
+/// angle. Multiply a light's `power` by it to get irradiance (the cosine integrated over
+/// the cap instead of taken at its centre).
 ///
 /// # Panics
 /// Debug builds assert `0 < r < pi / 2`.

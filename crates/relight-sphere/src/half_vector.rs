@@ -1,5 +1,6 @@
 //! Lobes in the half-vector domain and their integration with isotropic prefiltered
-//! lookups (issue 10 item 3; docs/RESULTS.md §8, "the warp table").
+//! lookups (the GGX lobe's own variable, Walter et al. 2007 eq. 33; docs/RESULTS.md,
+//! section sg).
 //!
 //! # Conventions
 //! `v` is the unit view direction (towards the viewer), `m` a lobe's unit axis,
@@ -77,10 +78,10 @@ pub const LN_S_STEP: f32 = 0.375;
 /// See [`LN_S_MIN`].
 pub const S_COUNT: usize = 37;
 /// The grid's smallest `s`, `exp(LN_S_MIN)`: a broader term is integrated as this one (it
-/// is constant over the sphere to within `exp(-2 s)`, 0.5 %). Issue 10: before the grid
-/// reached this far (its smallest `s` was 0.22), the scale-free mass `s int g` held below
-/// the grid made `int g` of a very broad term grow as `1 / s`, and a GGX plastic's broad
-/// lobes rendered many times too bright.
+/// is constant over the sphere to within `exp(-2 s)`, 0.5 %). A grid that stops short of
+/// it (at `s` = 0.22, say) holds the scale-free mass `s int g` below the grid, so that
+/// `int g` of a very broad term grows as `1 / s` and a GGX plastic's broad lobes render many
+/// times too bright.
 pub const S_MIN: f32 = 0.002_478_752;
 /// See [`LN_S_MIN`].
 pub const THETA_STEP: f32 = 5.0;

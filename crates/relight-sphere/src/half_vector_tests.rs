@@ -42,7 +42,7 @@ fn the_table_integrates_half_vector_terms_better_than_one_lookup() {
     // quadrature; each tap and the control integrated by the same quadrature (no chain),
     // so the figures are those of the representation. The control is one isotropic Gaussian
     // at the mirror direction with sharpness s / 4 and the term's exact mass (the "one
-    // lookup" of docs/RESULTS.md §8, normalised as well as it can be).
+    // lookup" of docs/RESULTS.md, section sg, normalised as well as it can be).
     let (dirs, areas) = sphere_grid(1024);
     let l: Vec<f32> = dirs.iter().map(|&d| sky(d)).collect();
     let quad = |f: &dyn Fn(Vec3) -> f32| -> f32 {
@@ -90,7 +90,7 @@ fn interpolated_taps_keep_a_constant_environment_s_integral() {
     let (dirs, areas) = sphere_grid(1024);
     let (mut worst, mut worst_broad) = (0.0f32, 0.0f32);
     // 1e-4 is broader than the grid (held at `S_MIN`): its integral must stay near 4 pi, not
-    // grow as `1 / s` (issue 10: a GGX plastic rendered many times too bright).
+    // grow as `1 / s` (the regression: a GGX plastic rendered many times too bright).
     for &s in &[1e-4f32, 0.01, 0.4, 2.7, 33.0, 410.0] {
         for &theta in &[2.5f32, 27.5, 52.5, 77.5] {
             let (m, v) = frame(theta, 0.7);
@@ -122,7 +122,7 @@ fn interpolated_taps_keep_a_constant_environment_s_integral() {
 fn every_table_entry_approximates_its_term() {
     // The stored (scaled) taps of every grid entry against `g` on the fit's own quadrature:
     // relative L2 distance. The header of the table states the fits' largest error.
-    // Measured by the generator (docs/RESULTS.md §8, session 26): up to theta_v = 70 degrees
+    // Measured by the generator: up to theta_v = 70 degrees
     // at most 0.063 for s >= 4 and 0.156 for broader terms (s = 1-3, whose image in `w`
     // spans most of the sphere); at grazing views five isotropic Gaussians cannot follow a
     // shape `1 / c^2` times thinner across the plane than along it (up to 0.46 at 85

@@ -75,7 +75,7 @@ pub fn texel_dir(width: usize, height: usize, col: usize, row: usize) -> Vec3 {
 /// Every texel direction of a `width x height` map, [`texel_dir`] bit for bit, from
 /// per-column and per-row sines and cosines: `width + height` pairs of f64 `sin_cos`
 /// instead of two per texel (which were a quarter of the cuts frame's lights' power under a
-/// new environment, docs/RESULTS.md §11).
+/// new environment, docs/RESULTS.md, section cuts).
 #[derive(Clone, Debug)]
 pub struct TexelDirs {
     /// `(sin phi, cos phi)` of each column.

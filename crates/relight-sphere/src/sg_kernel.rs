@@ -1,4 +1,4 @@
-//! The radial shape of a fitted lobe (issue 10 item 3): Green 2005's Gaussian, or a
+//! The radial shape of a fitted lobe: Green 2005's Gaussian (eq. 2.1), or a
 //! heavy-tailed kernel with the shape of a GGX reflection lobe, written as a fixed mixture of
 //! Gaussians so that everything the Gaussian has (closed-form integral, prefiltered lookup,
 //! exact Jacobians) carries over.
@@ -19,7 +19,7 @@
 //!   i.e. `(1 + x / (2 alpha^2))^-2`: this kernel with `lambda = 1 / alpha^2`. Its tails fall
 //!   as `x^-2`, not `exp(-lambda x)`: a least-squares Gaussian fitted to a GGX lobe misses
 //!   them and, rescaled to the data's energy, puts their light into its core (the
-//!   representation term of docs/RESULTS.md §8's error budget). The same `lambda` gives the
+//!   representation term of the error budget, docs/RESULTS.md, sg). The same `lambda` gives the
 //!   same curvature at the peak as the Gaussian (`K ~ 1 - lambda x`), so sharpness bounds and
 //!   coherence terms keep their meaning.
 //!

@@ -14,7 +14,7 @@
 //! left-to-right order). The budgets of the paper's Fig. 9 are [`LIGHT_CUT_BUDGETS`].
 //!
 //! **Cluster directions** ([`LightCut::direction`], a departure from the paper, measured in
-//! docs/RESULTS.md §11): the paper evaluates the BRDF at a merged cluster's centre. relight
+//! docs/RESULTS.md, cuts): the paper evaluates the BRDF at a merged cluster's centre. relight
 //! uses the cluster's mean direction weighted by the lights' luminance `Y(l_i)` (the tree's
 //! geometric direction where the cluster holds no light), for every tree node. For lights of
 //! even power it is the geometric centre; for a cluster whose power is one bright light (a
@@ -25,8 +25,8 @@
 //! not a cure (one direction still stands for a cluster mixing a sun and sky), so the
 //! evaluation's GGX rows still vary by light cut more than by the reference's noise.
 //!
-//! **Cluster spread** ([`LightCut::spread_average`], opt-in, measured in docs/RESULTS.md
-//! §11): one direction stands for a cluster whose lights spread over more than a glossy
+//! **Cluster spread** ([`LightCut::spread_average`], measured in docs/RESULTS.md, section
+//! cuts): one direction stands for a cluster whose lights spread over more than a glossy
 //! lobe, and which cluster lands in a mirror direction changes with every split (the
 //! dragon's GGX plastic was worse at 256 light-cut nodes than at 128). With it, a merged
 //! cluster's BRDF is the mean of five evaluations: at its direction `mu` and at four
@@ -38,7 +38,7 @@
 //! plastic's base, Blinn-Phong's and Ward's diffuse terms) is evaluated at `mu` alone, as a
 //! Lambert material always is: it is smooth over a cluster, and its five evaluations (a
 //! transmittance table looked up at each) were half of the plastic's CPU frame
-//! (docs/RESULTS.md §11, session 33, with its effect on the error against the path tracer).
+//! (docs/RESULTS.md, section cuts, with its effect on the error against the path tracer).
 
 use super::cut::{select_cut, Keyed, NodeStats};
 use super::tree::{LightTree, NodeKind};

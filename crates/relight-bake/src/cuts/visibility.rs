@@ -38,11 +38,12 @@ use std::ops::Range;
 pub enum CutFunction {
     /// `V(w) max(0, n . w)`: visibility times the clamped cosine of the vertex normal
     /// (cuts 2.3-2.7x shorter, but the cosine of a coarse cluster straddling the horizon
-    /// lights a band beyond a sphere's terminator: larger errors, docs/RESULTS.md §11).
+    /// lights a band beyond a sphere's terminator: larger errors).
     VisibilityCosine,
     /// `V(w) [n . w > 0]`: binary visibility above the vertex's horizon (the paper's `V`,
     /// sec. 3.1, with the cosine in the BRDF, so a per-pixel normal can change it). The
-    /// default: closer to the path tracer on every scene measured (docs/RESULTS.md §11).
+    /// default: closer to the path tracer on every scene measured (docs/RESULTS.md, section
+    /// cuts).
     #[default]
     Visibility,
 }

@@ -103,10 +103,10 @@ impl LobeSetting {
         order: LobeOrder::Joint,
     };
 
-    /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md §8, sessions 26-28;
-    /// additive lobes were measured as the default in session 37 and not kept: worse than
-    /// nested on Fig. 3-5 and the teapot under Kiara 1 Dawn at two and three lobes; two
-    /// other residual orders, session 38, broke St Peter's or gained nothing).
+    /// GGX-shaped lobes of the half vector, nested (docs/RESULTS.md, section sg; additive
+    /// lobes measured worse than nested on Fig. 3-5 and the teapot under Kiara 1 Dawn at two
+    /// and three lobes, and two other orders of residual lobes broke St Peter's or gained
+    /// nothing).
     pub const HALF_VECTOR_GGX: LobeSetting = LobeSetting {
         kernel: SgKernel::Ggx,
         domain: SgDomain::HalfVector,
@@ -115,7 +115,7 @@ impl LobeSetting {
 
     /// The setting `relight bake` and `relight eval` choose for a scene with `materials` when
     /// none of the lobe options is given, with the reason, chosen by the figures of
-    /// docs/RESULTS.md §8 ("The default lobes by material", session 29):
+    /// docs/RESULTS.md, section sg:
     /// * a scene with a **GGX conductor** gets [`LobeSetting::HALF_VECTOR_GGX`]: a
     ///   conductor's whole glossy transport is `D(h) G F` of the half vector, which one
     ///   light-domain Gaussian cannot follow as it stretches at grazing views. Measured on the
@@ -244,12 +244,12 @@ impl SgBakeSettings {
         let half = self.fit.lobe_domain == super::SgDomain::HalfVector;
         if self.fit.lobe_kernel != super::SgKernel::Gaussian && many && !half {
             // Measured: 2 and 3 light-domain lobes of the GGX kernel are worse than 1 on
-            // Fig. 3-5 and on the sphere test scene (docs/RESULTS.md §8); more lobes must
-            // never be worse.
+            // Fig. 3-5 and on the sphere test scene (docs/RESULTS.md, section sg); more lobes
+            // must never be worse.
             return err(format!(
                 "fit.lobe_kernel {} fits one light-domain lobe per component (direct_lobes {}, \
-                 indirect_lobes {} given): with more its renders can get worse (docs/RESULTS.md \
-                 §8); use the gaussian kernel, or the half-vector domain with nested lobes",
+                 indirect_lobes {} given): with more its renders can get worse; use the \
+                 gaussian kernel, or the half-vector domain with nested lobes",
                 self.fit.lobe_kernel.kernel().name(),
                 self.direct_lobes,
                 self.indirect_lobes
@@ -259,7 +259,7 @@ impl SgBakeSettings {
             // Jointly fitted half-vector lobes were measured worse with each added lobe (Spot:
             // 8.5 / 11.5 / 13.8 %): a residual lobe's axis drifts between (vertex, view)s and
             // shows as blotches once seen from another view. Nested lobes keep slot 1 the
-            // one-lobe fit (docs/RESULTS.md §8, session 28).
+            // one-lobe fit.
             if many && self.fit.lobe_order == super::LobeOrder::Joint {
                 return err(format!(
                     "fit.lobe_domain half-vector fits more than one lobe per component only \

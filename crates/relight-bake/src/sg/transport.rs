@@ -403,7 +403,7 @@ impl<'a> TransportContext<'a> {
     /// into `out` (`6 direct_res^2` texels): what [`TransportSource::compute`] tabulates for a
     /// vertex and one of the 92 views, for an arbitrary point and view (the view clamped to
     /// `horizon_deg` as there). Used by the error budget of the evaluation (the per-pixel and
-    /// exact-view rows of docs/RESULTS.md §8). A degenerate normal gives zeros.
+    /// exact-view rows, `relight_eval::sg::budget`). A degenerate normal gives zeros.
     ///
     /// # Panics
     /// If `out.len() != 6 direct_res^2`.

@@ -101,7 +101,7 @@ pub struct VmfBakeSettings {
     pub material_samples: u32,
     /// SH order of the diffuse term's transfer, `0..=10` (0: the diffuse term as vMF lobes,
     /// as the paper; `n`: `n^2` RGB coefficients per vertex, `super::diffuse_sh`). Default
-    /// 5, chosen by measurement (docs/RESULTS.md §12 (evaluation)).
+    /// 5, chosen by measurement (docs/RESULTS.md, section vmf).
     #[serde(default)]
     #[cfg_attr(feature = "cli", arg(long, default_value_t = VmfBakeSettings::default().diffuse_sh_order))]
     pub diffuse_sh_order: u32,

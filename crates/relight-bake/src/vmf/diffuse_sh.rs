@@ -1,5 +1,5 @@
 //! The diffuse term's transfer as SH (the paper, section 5.2: "any PRT technique could be
-//! used to render diffuse materials [SKS02, NRH03]"; docs/RESULTS.md §12 (evaluation)).
+//! used to render diffuse materials [SKS02, NRH03]"; docs/RESULTS.md, section vmf).
 //!
 //! One vMF lobe per class fits the diffuse term badly: the direct class of an open
 //! Lambert point is a clamped cosine, and its vMF (kappa about 2.9) is 32 % below it at 60

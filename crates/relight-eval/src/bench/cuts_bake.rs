@@ -1,4 +1,4 @@
-//! Cuts bake cost (section "cuts-bake"; issue 11's target: the bunny's 35.9K vertices with
+//! Cuts bake cost (section "cuts-bake"; relight's target: the bunny's 35.9K vertices with
 //! 32K environment samples in under 3 minutes on 2 cores).
 //!
 //! Through the public API of `relight_bake::cuts`, on `bunny.obj` (else a procedural sphere
@@ -43,7 +43,7 @@ use std::ops::Range;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The bake-time target of issue 11 on 2 cores, seconds.
+/// The bake-time target on 2 cores, seconds (module docs).
 pub const TARGET_SECONDS: f64 = 180.0;
 
 /// A 512 x 257 sky with a 0.006 sr sun of radiance 2000 (the illumination cuts' test light).

@@ -1,4 +1,4 @@
-//! The cuts frame (section "cuts-frame"; issue 11's target: a 512 x 512 frame at light cut
+//! The cuts frame (section "cuts-frame"; relight's target: a 512 x 512 frame at light cut
 //! 256 at 6.4 fps, the paper's GPU figure for Hebe, on 2 cores).
 //!
 //! The whole mesh (`bunny.obj`, else a procedural sphere on a plane) is baked once with the
@@ -40,7 +40,7 @@ use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The frame target of issue 11, milliseconds (6.4 fps).
+/// The frame target, milliseconds (6.4 fps, module docs).
 pub const TARGET_MS: f64 = 1e3 / 6.4;
 
 /// Degrees the bench's camera orbits per frame (32 degrees per second at 6.4 fps: a brisk

@@ -1,4 +1,4 @@
-//! The cuts local-light frame (section "cuts-local"; issue 11 item 7: a point light moved at
+//! The cuts local-light frame (section "cuts-local": a point light moved at
 //! run time with one bounce of indirect light, Cheslack-Postava et al. 2008 sec. 4.2).
 //!
 //! A closed 2 x 2 x 2 room built here (walls of 12 x 12 quads facing in, red and green side

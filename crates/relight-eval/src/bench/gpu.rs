@@ -24,7 +24,8 @@ use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
 
-/// Per-frame CPU budget of the viewer (issue 13).
+/// Per-frame CPU budget of the viewer: the CPU-side work of one frame must leave room for
+/// interactive rates.
 const BUDGET_MS: f64 = 2.0;
 
 /// A sphere of `rings` rings on a plane under a sun and sky, camera 1280 x 720.

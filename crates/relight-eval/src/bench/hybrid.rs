@@ -1,6 +1,6 @@
 //! The hybrid method's per-frame costs (sections "Hybrid: environment decomposition" and
 //! "Hybrid frame"): decomposing an environment into SH + cap lights against its per-frame
-//! budget (issue 3 item 6), and a hybrid frame (shadow maps + shading) against the PRT-only
+//! budget, and a hybrid frame (shadow maps + shading) against the PRT-only
 //! frame of the same scene.
 
 use super::{median, Section};

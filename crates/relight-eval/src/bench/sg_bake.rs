@@ -1,7 +1,7 @@
 //! SG bake cost per vertex (section "SG bake"; formerly the ignored tests `bake_timing` of
 //! `relight_bake::sg::fit` and `time_per_vertex_armadillo` of `relight_bake::sg::transport`).
 //!
-//! What the armadillo bake of docs/RESULTS.md §8 does, on a small connected patch of a mesh
+//! What the armadillo bake of docs/RESULTS.md (sg) does, on a small connected patch of a mesh
 //! (breadth-first from a seed vertex over the triangle edges), with its material (GGX plastic,
 //! alpha 0.15) and settings (defaults: 6 x 32 x 32 direct and 6 x 8 x 8 indirect cube maps, 64
 //! paths, 92 views; 2 direct lobes + 1 indirect), through the public API of
@@ -41,7 +41,7 @@ use std::time::Instant;
 /// Vertices of the armadillo (`data/meshes/armadillo.obj`), what the estimate extrapolates to.
 pub const ARMADILLO_VERTICES: usize = 14_587;
 
-/// The target of the armadillo bake on 2 cores (docs/RESULTS.md §8), seconds.
+/// The target of the armadillo bake on 2 cores (docs/RESULTS.md, section sg), seconds.
 pub const TARGET_SECONDS: f64 = 600.0;
 
 /// The material of `examples/sg_armadillo.json`.

@@ -1,8 +1,8 @@
-//! The vMF bake and frame (section "vMF bake"; issue 12 item 8): Laurijssen & Dutré 2009's
+//! The vMF bake and frame (section "vMF bake"): Laurijssen & Dutré 2009's
 //! teapot (Table 1, Blinn-Phong exponent 64) baked with adaptive angular (section 4.2) and
 //! spatial (section 4.3) refinement on every core, against the same mesh baked at fixed
 //! level-1 views without refinement in the same run (the paper's Table 1 reports 5.3 hours on 8
-//! cores for its full-size bake; the issue's target is 10 minutes on 2); then 512 x 512 CPU
+//! cores for its full-size bake; relight's target is 10 minutes on 2); then 512 x 512 CPU
 //! frames of the refined bake against an `sg` frame (Green 2005, one lobe) of the initial mesh
 //! and the SH PRT frame of the same mesh and camera, all in the same run.
 //!

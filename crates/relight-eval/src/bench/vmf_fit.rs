@@ -1,5 +1,5 @@
-//! The vMF material fit, EM against nonlinear least squares (section "vMF fit"; issue 12
-//! item 3, the paper's section 6.1: "For a Blinn-Phong BRDF with glossy exponent e = 128,
+//! The vMF material fit, EM against nonlinear least squares (section "vMF fit"; the
+//! paper's section 6.1: "For a Blinn-Phong BRDF with glossy exponent e = 128,
 //! it takes about 47 seconds to compute all slice parameters with the nonlinear minimization
 //! procedure \[CL96\]. Fitting a similar transfer function with our EM estimation on the other
 //! hand, takes about 2 seconds").
@@ -15,7 +15,7 @@
 //! Both over the views of icosahedral level 3 above the horizon (the paper's "all slice
 //! parameters" of one material; its bake allows level 5). The baseline is EM in the same run.
 //! The accuracy of the two on the same slices is `relight_sphere::vmf::em`'s test
-//! `em_vs_levenberg_marquardt` (docs/RESULTS.md §12).
+//! `em_vs_levenberg_marquardt` (docs/RESULTS.md, section vmf).
 
 use super::Section;
 use glam::Vec3;

@@ -1,4 +1,4 @@
-//! The error budget of the `sg` method (`relight eval --method sg --budget`, issue 10): where
+//! The error budget of the `sg` method (`relight eval --method sg --budget`): where
 //! the distance between the SG render and Mitsuba comes from, one approximation at a time.
 //!
 //! The SG frame is a chain of approximations of the direct glossy radiance
@@ -18,18 +18,18 @@
 //! Two study rows follow (not links of the frame's chain): `pixel fit, texel sum` is the
 //! `pixel fit` row's lobes integrated by the texel sum of `tabulated` (the representation
 //! alone, at the tabulated row's resolution), and `half-vector fit, texel sum` fits the same
-//! cube map with lobes in the half-vector domain (`half_vector_fit`), which the frame cannot
-//! render yet: what that representation would give (docs/RESULTS.md §8, session 25);
+//! cube map with lobes in the half-vector domain (`half_vector_fit`) whatever the bake's
+//! domain: what that representation gives at this pixel;
 //! `half-vector fit, 5 taps` integrates those lobes with prefiltered lookups as a frame would
 //! (`half_vector_taps`), and `half-vector fit, warp table` does so with the tabulated
-//! Gaussians of `relight_sphere::half_vector` (`half_vector_table`, session 26).
+//! Gaussians of `relight_sphere::half_vector` (`half_vector_table`).
 //!
 //! Blends and lobe matching are the frame's ([`ShadeOptions`]) in every row from `vertex
 //! fit` on. For a half-vector bake (`--lobe-domain half-vector`) the rows' fits are the
 //! bake's own, in the half-vector domain, for the sample's (or vertex's, or bake view's)
 //! view; `pixel fit` then integrates them with the warp table and `pixel fit, texel sum`
 //! evaluates them at each texel's half vector, and the frame's rows integrate every blended
-//! lobe for the fragment's own view as the frame does (docs/RESULTS.md §8, session 27).
+//! lobe for the fragment's own view as the frame does.
 //! "Integrated exactly" uses a dense chain ([`dense_lighting`]: 8 levels per octave of
 //! `sigma`, two texels per `sigma`), which agrees with brute-force integration against every
 //! texel of the map to within 2 % next to a bright window (test
@@ -156,7 +156,7 @@ fn texel_sum(lbar: &[Vec3], solid: &[f32], f: impl Fn(usize) -> Vec3) -> Vec3 {
     (0..lbar.len()).map(|i| f(i) * lbar[i] * solid[i]).sum()
 }
 
-/// The study row `half-vector fit` (docs/RESULTS.md §8, session 25): the view's direct cube
+/// The study row `half-vector fit` (module docs): the view's direct cube
 /// map `t` fitted with lobes of `kernel` in the **half-vector domain**, `a K(m . h(w))` with
 /// `h(w) = normalize(w + v)` (the GGX lobe's own variable, so one lobe follows the
 /// reflection's stretch at grazing views), integrated by the texel sum. The fit is
@@ -779,8 +779,8 @@ mod tests {
     fn five_taps_keep_a_broad_half_vector_lobe_s_integral() {
         // Under a constant sky the integral is the lobe's mass in `w`: `int K(m . h) 4 v.h dh`.
         // The taps weight each term by its mean Jacobian `4 A(s) v.m`: measured 1.1 / 1.5 /
-        // 0.3 / 0.9 % off at the four cases below. Without it (session 25's first version,
-        // `A = 1`) the budget's 5-tap row was 12 % brighter than the texel sum on Spot
+        // 0.3 / 0.9 % off at the four cases below. Without it (`A = 1`, as first written)
+        // the budget's 5-tap row was 12 % brighter than the texel sum on Spot
         // (median over the object): a broad lobe's widest term has `s` about 1.
         let env = Environment::new(EnvMap::cube_from_fn(16, |_| Vec3::ONE));
         let dense = dense_lighting(&env, 2);

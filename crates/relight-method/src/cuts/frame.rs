@@ -77,7 +77,7 @@ pub struct CutsFrameSettings {
     /// evaluations per wide cluster; the default; diffuse lobes stay at the cluster's
     /// direction, `LightCut::spread_lobes`) instead of evaluating it at the cluster's
     /// direction alone (`--cluster-spread false`: faster; measured farther from the
-    /// reference on the bunny, teapot and dragon, docs/RESULTS.md §11).
+    /// reference on the bunny, teapot and dragon).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = true, action = clap::ArgAction::Set, num_args = 0..=1, default_missing_value = "true"))]
     pub cluster_spread: bool,
     /// The point or spot light of a bake of surface samples.

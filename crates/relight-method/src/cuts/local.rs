@@ -1,5 +1,6 @@
 //! The point or spot light of a `cuts` frame over a bake of surface samples (local lighting,
-//! issue 11 item 7; the shading is `relight_render::shade_local`), given at render time:
+//! Cheslack-Postava et al. 2008 sec. 4.2; the shading is `relight_render::shade_local`),
+//! given at render time:
 //! `--point-light x,y,z --light-intensity r,g,b [--spot-dir x,y,z --spot-angle deg]`.
 //! The same options light `relight reference` (the path tracer's next-event estimation).
 
@@ -7,7 +8,7 @@ use crate::MethodError;
 use glam::Vec3;
 use relight_render::light::{PointLight, Spot};
 
-/// Which terms of local lighting a frame renders (the time split of docs/RESULTS.md). A
+/// Which terms of local lighting a frame renders (to time or check one term alone). A
 /// closed set.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]

@@ -5,8 +5,8 @@
 //!
 //! A triangle's merged cut (`shade_cuts::triangle`) is the union of four cuts: its three
 //! vertex cuts and the light cut (the traversal of sec. 3.2). The paper merges at every pixel
-//! of every frame; on the CPU that traversal was about two thirds of a glossy frame
-//! (docs/RESULTS.md §11). The merge is split in two here:
+//! of every frame; on the CPU that traversal was about two thirds of a glossy frame. The
+//! merge is split in two here:
 //!
 //! 1. **The visibility union** of the three vertex cuts (the same traversal over three cuts),
 //!    which depends on the triangle alone: neither on the camera, the fragments' barycentric
@@ -43,7 +43,7 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering::Relaxed};
 use std::sync::Mutex;
 
 /// The default budget of the records, bytes (256 MiB: the unions of the bunny's triangles
-/// drawn over nine frames of an orbit at 512 x 512 take 110 MiB, docs/RESULTS.md §11).
+/// drawn over nine frames of an orbit at 512 x 512 take 110 MiB).
 pub const DEFAULT_BUDGET: usize = 256 << 20;
 
 /// One cluster of a triangle's visibility union (module docs).

@@ -195,7 +195,7 @@ fn corner_frame_matches_the_path_tracer_as_the_triangle_merge_does() {
 /// GGX plastic's diffuse base stays at each cluster's direction. Against the path tracer
 /// (direct light, 1024 spp, noise removed by `bias`), spreading the glossy lobe makes a sharp
 /// plastic closer and a rough one no further, at coarse and fine light cuts. Spreading the
-/// diffuse base too (the frame before session 33) was 5 % further than no spread at all for
+/// diffuse base too (as an earlier frame did) was 5 % further than no spread at all for
 /// the rough plastic at 16 nodes (0.0347 against 0.0330), which this bound rejects.
 #[test]
 fn spreading_the_glossy_lobe_alone_is_never_further_from_the_path_tracer() {

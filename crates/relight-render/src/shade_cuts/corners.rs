@@ -21,7 +21,7 @@
 //! cut. For Lambert over cuts holding the cosine the BRDF is the same for every cluster and
 //! both sums are equal (tested); over binary visibility only the cosine's sampling changes,
 //! and the frame is no further from the path tracer than the merged one (tested; on the
-//! bunny the two frames differ by 2e-5 to 7e-5 relative RMS, docs/RESULTS.md §11). Glossy
+//! bunny the two frames differ by 2e-5 to 7e-5 relative RMS). Glossy
 //! lobes are not shaded this way: sampled at the corners' coarser clusters they measured up
 //! to 8 % further from the path tracer (a GGX conductor at a 64-node light cut).
 //!

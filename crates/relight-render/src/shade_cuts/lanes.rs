@@ -5,7 +5,7 @@
 //! AVX2 + FMA, and with AVX-512 (F + VL) as well, chosen at run time ([`Isa`]). The AVX-512
 //! build still works on 8-lane (256-bit) groups; what it gains is 32 vector registers
 //! instead of 16, so the five-point rule's terms of the glossy sums stay in registers
-//! instead of spilling (the plastic's lanes 16 % faster on a Zen 4, `docs/RESULTS.md` §11).
+//! instead of spilling (the plastic's lanes 16 % faster on a Zen 4).
 //! Rust never fuses a multiply and an add on its own, so the three builds give the same
 //! bits. `RELIGHT_NO_AVX512=1` caps the choice at AVX2 and `RELIGHT_PORTABLE_KERNELS=1` at
 //! the portable build (comparisons: `relight bench` as on a CPU without them).

@@ -28,7 +28,7 @@
 //! `sum w_j E_j (v . m) / (v_j . m)`, which exceeds the blend of the energies `sum w_j E_j`
 //! wherever `v . m` is a convex mix of the `v_j . m` (the mean of `1 / c` is at least
 //! `1 / mean c`): on Spot's conductor the blend across views brightened the object by 4.5 %
-//! (docs/RESULTS.md §8, session 27). [`keep_mass`] rescales the blended lobe so that its
+//! (docs/RESULTS.md, section sg). [`keep_mass`] rescales the blended lobe so that its
 //! integral seen from `v` is `sum w_j E_j`, the corners' integrals each seen from its own
 //! view: the half-vector counterpart of [`LobeBlend::Energy`]'s energy, applied after
 //! either blend.
@@ -47,7 +47,7 @@ use relight_sphere::sg::SgLobe;
 use relight_sphere::sg_kernel::LobeKernel;
 
 /// How lobes are interpolated (module docs; which blend the frame uses where is
-/// `ShadeOptions`'s, chosen by docs/RESULTS.md §8).
+/// `ShadeOptions`'s, chosen by the figures of docs/RESULTS.md, section sg).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LobeBlend {
     /// Linear axis (renormalised), sharpness and amplitude: the paper's; the frame's blend

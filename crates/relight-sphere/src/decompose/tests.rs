@@ -1,4 +1,5 @@
-//! Tests of the decomposition (issue 3 items 1, 4, 5, 6 and bad input).
+//! Tests of the decomposition (the elbow rule, the lights found, energy with the caps removed,
+//! the cosine over the cap, stability under rotation, every layout, and bad input).
 
 use super::*;
 use crate::envmap::{luminance, EnvLayout};
@@ -321,7 +322,7 @@ fn match_lights(lights: &[ExtractedLight], want: &[Vec3]) -> f32 {
 
 #[test]
 fn temporal_stability_under_rotation() {
-    // Issue 3 item 5: rotate a map with three discs in 1-degree steps about +Y and about a
+    // Temporal stability: rotate a map with three discs in 1-degree steps about +Y and about a
     // tilted axis; every frame must find the same three lights, each within the tolerance of
     // the rotated disc centre.
     let discs = [

@@ -1,5 +1,4 @@
-//! Moment matching of fitted lobes (issue 10: the shape of one Gaussian standing for a GGX
-//! lobe).
+//! Moment matching of fitted lobes (the shape of one Gaussian standing for a GGX lobe).
 //!
 //! The least-squares fit (thesis eq. 3.1) spends its one Gaussian on the core of a GGX lobe
 //! and misses its long tails; rescaling its amplitude to the data's integral afterwards puts

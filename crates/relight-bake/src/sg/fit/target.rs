@@ -96,8 +96,8 @@ pub struct ViewTarget {
 }
 
 impl ViewTarget {
-    /// Moves the target to the half-vector domain of the view `v` (issue 10 item 3,
-    /// `relight_sphere::half_vector`): every direction `w` becomes `h = normalize(w + v)`,
+    /// Moves the target to the half-vector domain of the view `v`
+    /// (`relight_sphere::half_vector`): every direction `w` becomes `h = normalize(w + v)`,
     /// weights and values unchanged, so the objective is still the L2 distance over `w` with
     /// the model evaluated at `h(w)`. The one direction with no half vector, `w = -v`, maps
     /// to `v` (a set of measure zero).

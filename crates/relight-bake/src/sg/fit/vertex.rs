@@ -593,8 +593,8 @@ fn solve_view(
 /// Fits one view's data (`6 n^2` texels) on its own: the greedy fit of `sg_fit::fit` with no
 /// coherence term, then the same energy handling as the flood fill. Returns the lobes and
 /// the relative L2 error. The reference the flood fill is measured against in the error
-/// budget (per-pixel and exact-view rows of docs/RESULTS.md §8). `view` is the direction the
-/// data was computed for (used in the half-vector domain).
+/// budget (its per-pixel and exact-view rows, in `relight_eval::sg::budget`). `view` is the
+/// direction the data was computed for (used in the half-vector domain).
 pub fn fit_alone(c: &ComponentFit, data: &[Vec3], view: Vec3) -> (Vec<SgLobe>, f64) {
     let t = c.view_target(data, view);
     if t.norm2 <= 0.0 {

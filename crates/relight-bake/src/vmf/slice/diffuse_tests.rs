@@ -1,4 +1,4 @@
-//! The diffuse error of one vMF per class (docs/RESULTS.md §12 (evaluation)): candidate
+//! The diffuse error of one vMF per class (docs/RESULTS.md, section vmf): candidate
 //! representations of the diffuse term's transfer `T_d` measured on the same path samples.
 //!
 //! The paper (section 5.2): "this assumption is not valid for diffuse materials [...] any
@@ -10,7 +10,7 @@
 //!   projection of the same weighted samples; SKS02's shadowed + interreflected transfer).
 //!
 //! Each is rendered against `ambient + sun` (a vMF light of kappa 1000, about 2.6 degrees
-//! wide, at 10 to 60 degrees elevation: the failure case of RESULTS §12 (continued)) and
+//! wide, at 10 to 60 degrees elevation: where one diffuse vMF per class fails) and
 //! compared with the truth: the estimate `sum_i w_i L(s_i)` of 2^18 paths of another seed.
 
 use super::*;

@@ -1,4 +1,4 @@
-//! EM against nonlinear least squares on the same transfer slices (issue 12, item 3; paper
+//! EM against nonlinear least squares on the same transfer slices (Laurijssen & Dutré 2009,
 //! section 6.1, where the Coleman-Li trust-region fit of the materials took 47 s against 2 s
 //! for EM). Test-only: it reports errors, never timings.
 //!
