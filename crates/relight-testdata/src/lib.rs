@@ -110,6 +110,7 @@ pub fn references_required() -> bool {
 }
 
 /// [`skip_verdict`] on this process's environment: print the skip, or panic.
+#[track_caller]
 fn apply(platform: Option<&str>, reason: &str) {
     let var = |k: &str| std::env::var_os(k).map(|v| v.to_string_lossy().into_owned());
     let (require, allow) = (var("RELIGHT_REQUIRE_REFERENCE"), var("RELIGHT_ALLOW_SKIP"));
@@ -124,6 +125,7 @@ fn apply(platform: Option<&str>, reason: &str) {
 ///
 /// # Panics
 /// When `RELIGHT_REQUIRE_REFERENCE=1`.
+#[track_caller]
 pub fn skip(reason: &str) {
     apply(None, reason);
 }
@@ -136,6 +138,7 @@ pub fn skip(reason: &str) {
 /// # Panics
 /// When `RELIGHT_REQUIRE_REFERENCE=1` and `RELIGHT_ALLOW_SKIP` does not list `name`; when
 /// `name`, or a name in `RELIGHT_ALLOW_SKIP`, is not a key of [`PLATFORM_PRECONDITIONS`].
+#[track_caller]
 pub fn skip_platform(name: &str, reason: &str) {
     apply(Some(name), reason);
 }
@@ -151,6 +154,7 @@ pub fn shared_dir() -> Option<PathBuf> {
 
 /// A file under the shared folder (e.g. `data/meshes/bunny.obj`), or `None` after a [`skip`]
 /// when it is absent: `let Some(p) = shared_file("...") else { return };`
+#[track_caller]
 pub fn shared_file(rel: &str) -> Option<PathBuf> {
     match shared_dir() {
         Some(d) if d.join(rel).is_file() => Some(d.join(rel)),
@@ -168,6 +172,7 @@ pub fn shared_file(rel: &str) -> Option<PathBuf> {
 }
 
 /// The shared data folder, or `None` after a [`skip`] naming `what` needs it.
+#[track_caller]
 pub fn require_shared_dir(what: &str) -> Option<PathBuf> {
     let d = shared_dir();
     if d.is_none() {
