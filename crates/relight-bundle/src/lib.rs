@@ -818,7 +818,7 @@ mod tests {
         match std::process::Command::new("mkfifo").arg(&fifo).status() {
             Ok(s) if s.success() => {}
             other => {
-                eprintln!("SKIP: mkfifo unavailable ({other:?})");
+                relight_testdata::skip_platform("fifo", &format!("mkfifo unavailable ({other:?})"));
                 return;
             }
         }
@@ -838,7 +838,10 @@ mod tests {
     #[test]
     fn stale_temporaries_of_dead_processes_are_removed_by_the_next_write() {
         if !Path::new("/proc/self").exists() {
-            eprintln!("SKIP: no /proc: stale temporaries cannot be recognised here");
+            relight_testdata::skip_platform(
+                "proc",
+                "no /proc: stale temporaries cannot be recognised here",
+            );
             return;
         }
         let dead = {

@@ -7,7 +7,8 @@
 //! prints them on stdout); a script that does not parse and a missing Vulkan driver end with
 //! a message and exit 1 before any window. Without Xvfb or a Vulkan adapter the window tests
 //! skip with a printed reason (and fail under `RELIGHT_REQUIRE_REFERENCE=1`). A build without
-//! the feature says which feature to build with.
+//! the feature says which feature to build with; there the tests that need the viewer skip
+//! for the platform precondition `feature-view` (`relight_testdata::skip_platform`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -107,6 +108,16 @@ fn no_vulkan(o: &Output) -> bool {
     false
 }
 
+/// A build without the feature `view`: skip what needs it, through the skip policy (the
+/// platform precondition `feature-view`; CI runs this file once with the feature, once
+/// without and that skip allowed).
+fn no_view_feature(what: &str) {
+    relight_testdata::skip_platform(
+        "feature-view",
+        &format!("{what}: built without --features view"),
+    );
+}
+
 fn read(p: &Path) -> relight_render::Image {
     relight_render::read_image(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -138,6 +149,7 @@ fn the_viewer_runs_a_script_and_its_screenshots_show_the_object_and_the_changes(
     if !cfg!(feature = "view") {
         let o = relight(&["view", s(&b)]);
         assert_clean_failure(&o, "--features view", &dir.join("none"));
+        no_view_feature("the viewer's script is not run");
         return;
     }
     let Some(x) = xvfb() else { return };
@@ -242,7 +254,8 @@ fn the_viewer_runs_a_script_and_its_screenshots_show_the_object_and_the_changes(
 #[test]
 fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
     if !cfg!(feature = "view") {
-        return; // the build without the feature is tested above
+        no_view_feature("bad input in the window is not checked");
+        return;
     }
     let dir = tmpdir("view", "bad");
     let b = bundle(&dir);
@@ -318,6 +331,7 @@ fn the_viewer_shows_bad_input_in_its_window_and_a_scripted_run_exits_1() {
 #[test]
 fn without_a_vulkan_driver_view_says_what_to_install_and_exits_1() {
     if !cfg!(feature = "view") {
+        no_view_feature("the refusal without a Vulkan driver is not checked");
         return;
     }
     let dir = tmpdir("view", "no-driver");

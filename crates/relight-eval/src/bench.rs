@@ -426,7 +426,8 @@ mod tests {
     #[test]
     fn peak_memory_sees_an_allocation_and_resets() {
         let Some(before) = peak_rss_mib() else {
-            return; // not Linux: nothing to measure
+            relight_testdata::skip_platform("proc", "no VmHWM in /proc/self/status");
+            return;
         };
         let v = vec![1u8; 96 << 20]; // touched: resident
         std::hint::black_box(&v);
@@ -454,7 +455,7 @@ mod tests {
     #[test]
     fn process_cpu_time_grows() {
         let Some(a) = process_cpu_ms() else {
-            eprintln!("SKIP: no /proc/self/stat");
+            relight_testdata::skip_platform("proc", "no /proc/self/stat");
             return;
         };
         // Spin until 30 ms of CPU time are counted (3 ticks), for at most 20 s of wall time

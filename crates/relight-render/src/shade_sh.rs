@@ -259,7 +259,7 @@ mod tests {
     #[test]
     fn avx2_kernel_matches_the_portable_one_on_every_vertex() {
         if !avx2::available() {
-            eprintln!("SKIP: no AVX2/FMA on this CPU");
+            relight_testdata::skip_platform("avx2", "no AVX2/FMA on this CPU");
             return;
         }
         let n = CHUNK + 301;

@@ -150,20 +150,17 @@ pub(crate) mod test_util {
             .unwrap_or_else(|_| panic!("did not finish within {secs} s (blocked or too slow)"))
     }
 
-    /// Make a FIFO at `path` with `mkfifo`; `false` (with the reason printed) where that is
-    /// not possible, so the test can skip.
+    /// Make a FIFO at `path` with `mkfifo`; `false` after a skip of the platform
+    /// precondition `fifo` (`relight_testdata::skip_platform`) where that is not possible:
+    /// the test then returns.
     pub fn make_fifo(path: &std::path::Path) -> bool {
-        match std::process::Command::new("mkfifo").arg(path).status() {
-            Ok(s) if s.success() => true,
-            Ok(s) => {
-                eprintln!("SKIP: mkfifo failed ({s})");
-                false
-            }
-            Err(e) => {
-                eprintln!("SKIP: mkfifo not available: {e}");
-                false
-            }
-        }
+        let why = match std::process::Command::new("mkfifo").arg(path).status() {
+            Ok(s) if s.success() => return true,
+            Ok(s) => format!("mkfifo failed ({s})"),
+            Err(e) => format!("mkfifo not available: {e}"),
+        };
+        relight_testdata::skip_platform("fifo", &why);
+        false
     }
 }
 

@@ -566,6 +566,10 @@ mod tests {
 
     #[test]
     fn vector_paths_agree() {
+        if !has_avx2_fma() {
+            relight_testdata::skip_platform("avx2", "no AVX2/FMA: only the portable path runs");
+            return;
+        }
         let pyr = SourcePyramid::new(&test_map(32));
         let m = &pyr.mips[0];
         let w = Window {

@@ -680,11 +680,14 @@ mod tests {
         {
             let isa = Isa::of_cpu();
             if isa == Isa::Portable {
-                println!("skipped: this CPU has no AVX2 + FMA");
+                relight_testdata::skip_platform("avx2", "this CPU has no AVX2 + FMA");
                 return;
             }
             if isa == Isa::Avx2 {
-                println!("the AVX-512 build not checked: this CPU has no AVX-512F + VL");
+                relight_testdata::skip_platform(
+                    "avx512",
+                    "the AVX-512 build not checked: this CPU has no AVX-512F + VL",
+                );
             }
             let (power, vis, dir, ring) = data();
             let f = GgxFragment {

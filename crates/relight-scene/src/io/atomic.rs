@@ -73,7 +73,10 @@ mod tests {
     #[test]
     fn stale_temporary_of_a_dead_process_is_removed_by_the_next_write() {
         if !Path::new("/proc/self").exists() {
-            eprintln!("SKIP: no /proc: stale temporaries cannot be recognised here");
+            relight_testdata::skip_platform(
+                "proc",
+                "no /proc: stale temporaries cannot be recognised here",
+            );
             return;
         }
         let dir = temp_dir("stale");

@@ -1069,7 +1069,7 @@ mod tests {
     #[test]
     fn dev_zero_buffer_with_the_opt_in_fails_without_reading_it() {
         if !Path::new("/dev/zero").exists() {
-            eprintln!("SKIP: no /dev/zero");
+            relight_testdata::skip_platform("dev-zero", "no /dev/zero");
             return;
         }
         let dir = temp_dir("gltfzero");

@@ -251,6 +251,10 @@ fn bvh_matches_brute_force_for_every_preset() {
             check_against_brute(&m, &Bvh { avx2: false, ..b }, &rs);
         }
     }
+    #[cfg(target_arch = "x86_64")]
+    if !(std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")) {
+        relight_testdata::skip_platform("avx2", "the AVX2 traversal not checked: no AVX2/FMA");
+    }
 }
 
 #[test]

@@ -68,7 +68,7 @@ fn fifos_are_refused_without_blocking() {
 #[test]
 fn devices_are_refused_even_with_the_opt_in() {
     if !Path::new("/dev/zero").exists() {
-        eprintln!("SKIP: no /dev/zero");
+        relight_testdata::skip_platform("dev-zero", "no /dev/zero");
         return;
     }
     let dir = temp_dir("devzero");
