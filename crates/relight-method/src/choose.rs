@@ -313,15 +313,13 @@ mod tests {
         // A 2 x 2 texture beside the scene file.
         let tex = dir.join("t.png");
         relight_scene::io::image::write_png_srgb8(&tex, 2, 2, &[[200, 10, 10]; 4]).unwrap();
-        let json = format!(
-            r#"{{"shapes": [{{"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 2,
-                 "material": {{"type": "lambert", "albedo": [1, 1, 1],
-                               "maps": {{"diffuse": "t.png"}}}}}}],
-               "environment": {{"type": "constant", "radiance": [1, 1, 1]}},
-               "camera": {{"origin": [0, 1.5, 3], "target": [0, 0, 0], "up": [0, 1, 0],
-                          "fov_deg": 40, "width": 8, "height": 8}}}}"#
-        );
-        let d: SceneDesc = serde_json::from_str(&json).unwrap();
+        let json = r#"{"shapes": [{"type": "plane", "center": [0, 0, 0], "size": 3, "divisions": 2,
+                 "material": {"type": "lambert", "albedo": [1, 1, 1],
+                               "maps": {"diffuse": "t.png"}}}],
+               "environment": {"type": "constant", "radiance": [1, 1, 1]},
+               "camera": {"origin": [0, 1.5, 3], "target": [0, 0, 0], "up": [0, 1, 0],
+                          "fov_deg": 40, "width": 8, "height": 8}}"#;
+        let d: SceneDesc = serde_json::from_str(json).unwrap();
         let s = d.build(&dir.join("scene.json")).unwrap();
         let c = choose_bake_method(&d, &s.materials, &s.maps);
         assert_eq!(c.method, MethodKind::Cuts, "{c}");
