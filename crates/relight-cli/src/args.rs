@@ -17,6 +17,26 @@ pub fn tonemap(s: &str) -> Result<ToneMap> {
     Ok(s.parse()?)
 }
 
+/// The tone map of PNG outputs: `--tonemap` if given, else the automatic exposure of `img`
+/// ([`relight_render::tonemap::ToneMap::auto`]), printed when a PNG is written.
+pub fn png_tonemap(
+    given: Option<&str>,
+    img: &relight_render::Image,
+    outs: &[PathBuf],
+    out: &Out,
+) -> Result<ToneMap> {
+    if let Some(s) = given {
+        return tonemap(s);
+    }
+    let auto = relight_render::tonemap::AutoExposure::of(img);
+    let png =
+        |p: &PathBuf| relight_render::ImageFormat::of(p) == Some(relight_render::ImageFormat::Png);
+    if outs.iter().any(png) {
+        out.line(format!("tone map: {auto}; --tonemap overrides"));
+    }
+    Ok(auto.tonemap)
+}
+
 /// Parse an SH window (`relight_sphere::sh::Window`'s `FromStr`).
 pub fn window(s: &str) -> Result<Window> {
     s.parse().context("--window")

@@ -13,7 +13,7 @@ use relight_method::sg::{MaterialBlend, Sg, SgSettings};
 use relight_method::sh::Sh;
 use relight_method::shard::Shard;
 use relight_method::vmf::Vmf;
-use relight_method::{BakeContext, BakeInput, BakeSummary, Baked, Method, MethodKind};
+use relight_method::{choose, BakeContext, BakeInput, BakeSummary, Baked, Method, MethodKind};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -25,9 +25,11 @@ pub struct Args {
     /// Output bundle (.relight).
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Method to bake for (`hybrid` renders the `sh` bake, so it bakes that).
-    #[arg(long, value_enum, default_value_t = MethodKind::Sh)]
-    pub method: MethodKind,
+    /// Method to bake for (`hybrid` renders the `sh` bake, so it bakes that). Default: chosen
+    /// from the scene's materials and printed with the reason: cuts if a material has texture
+    /// or normal maps or is glossy, sh if every material is diffuse.
+    #[arg(long, value_enum)]
+    pub method: Option<MethodKind>,
     /// SH order n (n^2 coefficients, 1..=32): of the transfer (sh), of the diffuse part (sg).
     #[arg(
         long,
@@ -118,13 +120,13 @@ impl BlendArgs {
     }
 }
 
-/// Check the options against the method before any work.
-fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
+/// Check the options against the method (given or chosen) before baking.
+fn check_options(a: &Args, method: MethodKind, m: &ArgMatches) -> Result<()> {
     let mut sg = arg_names::<SgBakeSettings>();
     sg.extend(arg_names::<BlendArgs>());
-    refuse_foreign(
+    let foreign = refuse_foreign(
         m,
-        a.method,
+        method,
         &[
             (
                 &[MethodKind::Sh, MethodKind::Hybrid],
@@ -134,7 +136,17 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
             (&[MethodKind::Cuts], arg_names::<CutsBakeSettings>()),
             (&[MethodKind::Vmf], arg_names::<VmfBakeSettings>()),
         ],
-    )?;
+    );
+    if a.method.is_none() {
+        foreign.with_context(|| {
+            format!(
+                "--method {} was chosen from the materials: give --method to bake with another",
+                method.name()
+            )
+        })?;
+    } else {
+        foreign?;
+    }
     if a.shard.is_some_and(|s| s.count > 1) || a.checkpoint_vertices.is_some() {
         let opt = if a.shard.is_some() {
             "--shard"
@@ -157,7 +169,7 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
         );
     }
     if given(m, "bounces") {
-        match a.method {
+        match method {
             MethodKind::Sh | MethodKind::Hybrid
                 if a.sh.transfer != ShTransferKind::Interreflected =>
             {
@@ -174,7 +186,9 @@ fn check_options(a: &Args, m: &ArgMatches) -> Result<()> {
 
 /// Run `relight bake`.
 pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
-    check_options(&a, m)?;
+    if let Some(method) = a.method {
+        check_options(&a, method, m)?;
+    }
     relight_bundle::output::check_outputs(&[&a.out], &["relight"], &[&a.scene])?;
     let ctx = BakeContext {
         backend: args::backend(a.backend.as_deref())?,
@@ -182,6 +196,19 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         progress: true,
     };
     let (desc, scene) = a.read.load(&a.scene)?;
+    let method = match a.method {
+        Some(method) => {
+            let w = choose::method_warning(method, &desc, &scene.materials, &scene.maps);
+            w.into_iter().for_each(|w| eprintln!("{w}"));
+            method
+        }
+        None => {
+            let choice = choose::choose_bake_method(&desc, &scene.materials, &scene.maps);
+            eprintln!("{choice}; --method chooses another");
+            check_options(&a, choice.method, m)?;
+            choice.method
+        }
+    };
     let input = BakeInput {
         desc: &desc,
         scene: &scene,
@@ -193,7 +220,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         scene.mesh.vertex_count(),
         scene.mesh.triangle_count()
     );
-    let baked: BakeSummary = match a.method.bake_kind() {
+    let baked: BakeSummary = match method.bake_kind() {
         relight_method::BakeKind::Sh => {
             let s = ShBakeSettings {
                 order: a.sh_order,

@@ -31,9 +31,10 @@ pub struct Args {
     /// Draw the environment behind the objects (as `render --background`; black without).
     #[arg(long)]
     pub background: bool,
-    /// Tone map for PNG outputs.
-    #[arg(long, default_value = "exp:1")]
-    pub tonemap: String,
+    /// Tone map for PNG outputs (as `relight render`'s; default: the same automatic
+    /// exposure).
+    #[arg(long)]
+    pub tonemap: Option<String>,
     /// How the scene is read.
     #[command(flatten)]
     pub read: args::SceneArgs,
@@ -44,7 +45,9 @@ pub struct Args {
 
 /// Run `relight reference`.
 pub fn run(a: Args, out: &Out) -> Result<()> {
-    let tm = args::tonemap(&a.tonemap)?;
+    if let Some(t) = &a.tonemap {
+        args::tonemap(t)?;
+    }
     let s = PtSettings {
         spp: a.spp,
         max_depth: a.max_depth,
@@ -66,6 +69,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         .map_err(|e| anyhow!("{}: {e}", a.scene.display()))?;
     let lights = a.light.lights_in(&scene.mesh, caster.as_ref())?;
     let (img, _) = pathtrace::render_with_lights(&scene, caster.as_ref(), &s, &lights);
+    let tm = args::png_tonemap(a.tonemap.as_deref(), &img, &a.out, out)?;
     for o in &a.out {
         write_image(o, &img, &tm)?;
         out.line(format!("wrote {}", o.display()));

@@ -8,7 +8,7 @@ use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgFrameSettings;
 use relight_method::sh::ShFrameSettings;
 use relight_method::vmf::VmfFrameSettings;
-use relight_method::{read_any, FrameOptions, FrameSettings, MethodKind};
+use relight_method::{choose, read_any, BakeKind, FrameOptions, FrameSettings, MethodKind};
 use relight_render::write_image;
 use serde_json::json;
 use std::path::PathBuf;
@@ -22,8 +22,9 @@ pub struct Args {
     /// checked before rendering and written together.
     #[arg(short, long, required = true)]
     pub out: Vec<PathBuf>,
-    /// Method (default: the bundle's: sh for an sh bake, sg for an sg bake, cuts for a cuts
-    /// bake, vmf for a vmf bake; hybrid renders sh bakes).
+    /// Method (default: the bundle's: sg for an sg bake, cuts for a cuts bake, vmf for a vmf
+    /// bake; an sh bake is shown with hybrid when a bright light stands out of the
+    /// environment, else with sh, and with sh when --window is given). The choice is printed.
     #[arg(long, value_enum)]
     pub method: Option<MethodKind>,
     #[command(flatten)]
@@ -44,9 +45,11 @@ pub struct Args {
     #[arg(long)]
     pub background: bool,
     /// Tone map for PNG outputs: linear, reinhard or exp, each with an optional parameter
-    /// (linear:EXPOSURE, reinhard:EXPOSURE, exp:GAMMA).
-    #[arg(long, default_value = "exp:1")]
-    pub tonemap: String,
+    /// (linear:EXPOSURE, reinhard:EXPOSURE, exp:GAMMA). Default: automatic exposure, the
+    /// frame's log-average luminance mapped to the key 0.18 and Reinhard's L / (1 + L)
+    /// (Reinhard et al. 2002, eq. 1-3); EXR and HDR outputs stay linear.
+    #[arg(long)]
+    pub tonemap: Option<String>,
     /// SH order of the lighting (sh) or of the environment's SH part (hybrid); at most the
     /// bake's (default: the bake's).
     #[arg(long, visible_alias = "order")]
@@ -99,12 +102,29 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
              time: on Debian `apt-get install mesa-vulkan-drivers libvulkan1`)"
         );
     }
-    let tm = args::tonemap(&a.tonemap)?;
+    if let Some(t) = &a.tonemap {
+        args::tonemap(t)?;
+    }
     let mut inputs = vec![a.bundle.as_path()];
     inputs.extend(a.env.env.as_deref());
     args::check_image_outputs(&a.out, &inputs)?;
     let baked = read_any(&a.bundle)?;
-    let method = a.method.unwrap_or_else(|| baked.kind().methods()[0]);
+    let desc = &baked.scene().desc;
+    let env = a.env.build(desc, &a.bundle)?;
+    let (method, why) = match a.method {
+        Some(method) => (method, None),
+        None if baked.kind() == BakeKind::Sh && args::given(m, "window") => (
+            MethodKind::Sh,
+            Some("an sh bake, and --window applies to sh".to_string()),
+        ),
+        None => {
+            let c = choose::choose_frame_method(&baked, &env)?;
+            (c.method, Some(c.why))
+        }
+    };
+    if let Some(why) = &why {
+        eprintln!("method: {} ({why})", method.name());
+    }
     refuse_foreign(
         m,
         method,
@@ -121,8 +141,6 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         ],
     )?;
     let settings = frame_settings(&a, method)?;
-    let desc = &baked.scene().desc;
-    let env = a.env.build(desc, &a.bundle)?;
     let mut camera = desc.camera;
     if let Some(c) = &a.camera {
         camera = args::camera(c, &camera)?;
@@ -142,6 +160,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         let f = relight_gpu::render_once(&baked, &settings, &a.bundle, &env, &camera, &opts)
             .with_context(|| format!("--gpu --method {}", method.name()))?;
         out.line(&f.line);
+        let tm = args::png_tonemap(a.tonemap.as_deref(), &f.output.image, &a.out, out)?;
         write_all(&a.out, &f.output.image, &tm)?;
         for o in &a.out {
             out.line(format!("wrote {}", o.display()));
@@ -171,6 +190,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
         f.times.vertex_ms,
         f.times.pixel_ms
     ));
+    let tm = args::png_tonemap(a.tonemap.as_deref(), &f.image, &a.out, out)?;
     write_all(&a.out, &f.image, &tm)?;
     for o in &a.out {
         out.line(format!("wrote {}", o.display()));
@@ -178,6 +198,8 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     out.summary(json!({
         "command": "render",
         "method": method.name(),
+        "method_reason": why,
+        "tonemap": tm.to_string(),
         "bundle": a.bundle,
         "outputs": a.out,
         "width": f.image.width,

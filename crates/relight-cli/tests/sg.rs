@@ -153,6 +153,8 @@ fn bad_sg_settings_and_bundles_are_refused_before_any_work() {
         sc.to_str().unwrap(),
         "-o",
         sh.to_str().unwrap(),
+        "--method",
+        "sh",
         "--samples",
         "8",
         "--order",

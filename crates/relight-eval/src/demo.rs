@@ -253,7 +253,7 @@ pub fn run(o: &DemoOptions) -> Result<(PathBuf, PathBuf)> {
     let mut hybrid_frame = HybridFrame::new(sh_baked, &Default::default())?;
     let mut sg_frame = sg.frame(&FrameSettings::default_for(MethodKind::Sg))?;
     let mut rows = Vec::new();
-    let mut tm = ToneMap::Exponential { gamma: 1.0 };
+    let mut tm = ToneMap::default();
     for rotate in [0.0f32, 120.0, 240.0] {
         let (mut s, mut g) = (scene.clone(), gscene.clone());
         s.env.rotate_y_deg = rotate;
@@ -263,15 +263,9 @@ pub fn run(o: &DemoOptions) -> Result<(PathBuf, PathBuf)> {
         let glossy_reference = path_trace(&g, o.spp, 2);
         let reference_s = t0.elapsed().as_secs_f64();
         if rows.is_empty() {
-            // Exposure from the unrotated reference: its mean pixel luminance maps to display
-            // 0.5 under the thesis' exponential tone map (1 - exp(-gamma Y) = 0.5).
-            let all = vec![true; reference.pixels.len()];
-            let mean_y = crate::reference::mean_lum(&reference, &all);
-            if mean_y > 0.0 {
-                tm = ToneMap::Exponential {
-                    gamma: (std::f64::consts::LN_2 / mean_y) as f32,
-                };
-            }
+            // One exposure for every panel: the automatic exposure of the unrotated reference
+            // (`relight render`'s rule).
+            tm = ToneMap::auto(&reference);
         }
         let (sh_img, sh_ms) = render(sh_frame.as_mut(), &s)?;
         let (hy_img, hy_ms) = render(&mut hybrid_frame, &s)?;

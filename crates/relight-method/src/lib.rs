@@ -38,6 +38,7 @@
 //! ```
 
 pub mod checkpoint;
+pub mod choose;
 pub mod cuts;
 mod error;
 pub mod hybrid;

@@ -392,7 +392,8 @@ impl SceneDesc {
 }
 
 /// `shapes[i] (kind)`, naming a shape in errors.
-fn shape_label(i: usize, s: &ShapeDesc) -> String {
+/// How messages name shape `i` of a scene file: `shapes[1] (sphere)`.
+pub fn shape_label(i: usize, s: &ShapeDesc) -> String {
     let kind = match s {
         ShapeDesc::Mesh { .. } => "mesh",
         ShapeDesc::Sphere { .. } => "sphere",

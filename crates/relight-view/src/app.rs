@@ -113,6 +113,9 @@ pub struct App<'a> {
     pub(crate) rotate_deg: f32,
     env_scale: f32,
     pub(crate) exposure_ev: f32,
+    /// The automatic exposure of the first frame (`relight render`'s rule), which
+    /// `exposure_ev` multiplies by `2^EV`.
+    auto_exposure: Option<ToneMap>,
     pub(crate) camera: Camera,
     pub(crate) bundle_camera: Camera,
     pub(crate) opts: FrameOptions,
@@ -196,6 +199,7 @@ impl<'a> App<'a> {
             rotate_deg: if args.env.is_some() { 0.0 } else { rotate_deg },
             env_scale: if args.env.is_some() { 1.0 } else { env_scale },
             exposure_ev: 0.0,
+            auto_exposure: None,
             camera,
             bundle_camera: camera,
             opts: FrameOptions::default(),
@@ -306,11 +310,12 @@ impl<'a> App<'a> {
         self.dirty.env = true;
     }
 
-    /// The display tone map: `relight render`'s exponential map with gain `2^EV`.
+    /// The display tone map: `relight render`'s automatic exposure of the first frame
+    /// ([`ToneMap::auto`]) with gain `2^EV`.
     pub(crate) fn tonemap(&self) -> ToneMap {
-        ToneMap::Exponential {
-            gamma: self.exposure_ev.exp2(),
-        }
+        self.auto_exposure
+            .unwrap_or_default()
+            .with_gain(self.exposure_ev.exp2())
     }
 
     /// The environment as prepared (map, rotation, scale).
@@ -424,6 +429,9 @@ impl<'a> App<'a> {
         let r = f.render(&camera, &self.opts);
         match r {
             Ok(out) => {
+                if self.auto_exposure.is_none() {
+                    self.auto_exposure = Some(ToneMap::auto(&out.image));
+                }
                 self.timings.frame_cpu_ms = out.stats.cpu_ms;
                 self.timings.frame_total_ms = out.stats.total_ms;
                 self.output = Some(out);

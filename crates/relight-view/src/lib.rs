@@ -7,9 +7,10 @@
 //!
 //! How a frame reaches the screen: `relight-gpu` renders into its own textures on its own
 //! device and reads the linear-radiance image back (its `render` returns host memory); the
-//! viewer tone-maps it on the CPU (`relight_render::tonemap`, the exponential map of `relight
-//! render` with the exposure as its gain) and uploads it as an egui texture. This costs a
-//! read-back and an upload per frame (measured in docs/RESULTS.md, section GPU renderer) but keeps
+//! viewer tone-maps it on the CPU (`relight_render::tonemap`: `relight render`'s automatic
+//! exposure of the first frame, times `2^EV` of the exposure control) and uploads it as an
+//! egui texture. This costs a read-back and an upload per frame (measured in
+//! docs/RESULTS.md, section GPU renderer) but keeps
 //! `relight-gpu`'s frames exactly those its tests compare with the CPU renderer.
 //!
 //! Failure policy: a bundle or environment that fails to load, a method the GPU cannot
