@@ -268,16 +268,23 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
 /// docs/RESULTS.md §8, session 32. The linear frame at every count gave 0.075, 0.081, 0.108
 /// and 0.210, 0.230, 0.245 for 1-3 lobes; on St Peter's conductor it gave 8.1, 16.3, 12.4 %
 /// against 8.1, 8.1, 8.3 % with the default.
+///
+/// Not asserted: four lobes within one noise of one lobe. Nested lobes fail it on both scenes
+/// (measured 2026-12-07, as above: sphere 0.1249 against 0.0750 + 0.0368, shadowed highlight
+/// 0.2516 against 0.2102 + 0.0363; three lobes pass, 0.1070 and 0.2239), so the drift of two or more nested half-vector lobes is a known defect of that order, not
+/// of the test; the default bake fits one lobe, and additive lobes are bounded
+/// (`additive_half_vector_lobes_are_never_worse`).
 #[test]
 fn more_half_vector_lobes_are_never_worse() {
-    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Nested);
+    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Nested, false);
 }
 
 /// Half-vector GGX lobes fitted in `order`, 1-4 of them, on both small scenes through their
 /// default frame (`ShadeOptions::default_for`: one lobe the paper's, two or more the nested
 /// frame): each added lobe no worse than one fewer within the reference's noise. Every lobe
 /// count is printed through both frames.
-fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
+/// With `bound_drift`, four lobes are also no worse than one by more than the noise.
+fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder, bound_drift: bool) {
     let fit = bake_sg::SgFitSettings {
         lobe_kernel: bake_sg::SgKernel::Ggx,
         lobe_domain: bake_sg::SgDomain::HalfVector,
@@ -302,6 +309,15 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
             monotone(&default, noise),
             "{name}: {default:?} (noise {noise})"
         );
+        // Steps each within the noise may still add up: the last count no worse than one
+        // lobe by more than one noise either (see `more_half_vector_lobes_are_never_worse`
+        // for why nested lobes are exempt).
+        assert!(
+            !bound_drift || default[3] <= default[0] + noise,
+            "{name}: four lobes {} drift above one lobe {} by more than the noise {noise}: {default:?}",
+            default[3],
+            default[0]
+        );
     }
 }
 
@@ -314,9 +330,11 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
 /// keep drifting upward. Session 36's additive fit (the residual of slot 1 before its
 /// peak was bounded, no gate) through the nested frame gave 0.2292, 0.2313, 0.2320 on the
 /// shadowed highlight (docs/RESULTS.md §8, session 37).
+/// Also asserted: four lobes no worse than one by more than the noise (measured 2026-12-07 as
+/// above: 0.0733 and 0.2204 against 0.0750 and 0.2102).
 #[test]
 fn additive_half_vector_lobes_are_never_worse() {
-    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive);
+    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive, true);
 }
 
 /// Issue 10 item 3: one lobe of the GGX-shaped kernel (`--lobe-kernel ggx`,
