@@ -32,7 +32,7 @@
 
 pub mod fit;
 mod settings;
-pub use settings::{LobeSetting, MAX_LOBES, MAX_REGIONS};
+pub use settings::{ExpectedError, LobeSetting, DEFAULT_LOBES_EXPECTED, MAX_LOBES, MAX_REGIONS};
 pub mod transport;
 
 use relight_scene::material::Material;

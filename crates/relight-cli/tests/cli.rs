@@ -121,40 +121,106 @@ fn bake_render_info_round_trip_matches_the_furnace_closed_form() {
     );
 }
 
+/// An environment that rotation changes: a bright cap (radiance 10, half-angle 35 degrees)
+/// about the map's +Z over a dim sky (0.05), a 64 x 32 latlong `.hdr`.
+fn cap_env(dir: &Path) -> PathBuf {
+    let (w, h) = (64, 32);
+    let cos_cap = 35f32.to_radians().cos();
+    let px: Vec<glam::Vec3> = (0..w * h)
+        .map(|k| {
+            let d = relight_sphere::latlong::texel_dir(w, h, k % w, k / w);
+            glam::Vec3::splat(if d.z > cos_cap { 10.0 } else { 0.05 })
+        })
+        .collect();
+    let p = dir.join("cap.hdr");
+    relight_scene::io::image::write_hdr(&p, w, h, &px).unwrap();
+    p
+}
+
+/// `--rotate-env` turns the environment about +Y (right-handed, Mitsuba's
+/// `to_world = rotate([0, 1, 0], angle)`: `Environment::world_from_env`), so the map's +Z
+/// cap lights the furnace sphere (seen from +Z, +X to the right of the picture) from the front
+/// unrotated, from +X (the right half) at +90 degrees and from -X (the left half) at -90,
+/// without re-baking: the bundle is not touched.
 #[test]
-fn rotating_the_environment_does_not_rebake_and_is_consistent() {
-    // Rotating a constant environment changes nothing; the render must accept --rotate-env
-    // (negative too) on an existing bundle.
+fn rotating_the_environment_does_not_rebake_and_moves_the_light_its_way() {
     let d = tmpdir("cli", "rotate");
     let scene = furnace_scene(&d);
     let bundle = d.join("r.relight");
-    bake_quick(&scene, &bundle);
-    let a = d.join("a.exr");
-    let b = d.join("b.exr");
-    assert!(relight(&[
-        "render",
-        bundle.to_str().unwrap(),
-        "-o",
-        a.to_str().unwrap()
-    ])
-    .status
-    .success());
     let o = relight(&[
-        "render",
-        bundle.to_str().unwrap(),
-        "--rotate-env",
-        "-73",
+        "bake",
+        scene.to_str().unwrap(),
         "-o",
-        b.to_str().unwrap(),
+        bundle.to_str().unwrap(),
+        "--samples",
+        "256",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (_, _, pa) = read_exr_pixels(&a);
-    let (_, _, pb) = read_exr_pixels(&b);
-    for (x, y) in pa.iter().zip(&pb) {
+    let baked = std::fs::read(&bundle).unwrap();
+    let env = cap_env(&d);
+    // Mean luminance of the left and right halves of the picture, and its centre pixel.
+    let render = |deg: &str| {
+        let out = d.join(format!("r{deg}.exr"));
+        let o = relight(&[
+            "render",
+            bundle.to_str().unwrap(),
+            "--env",
+            env.to_str().unwrap(),
+            "--rotate-env",
+            deg,
+            "--supersample",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (w, h, px) = read_exr_pixels(&out);
+        let lum = |p: &[f32; 3]| (p[0] + p[1] + p[2]) as f64 / 3.0;
+        let (mut left, mut right) = (0.0, 0.0);
+        for (k, p) in px.iter().enumerate() {
+            if k % w < w / 2 {
+                left += lum(p);
+            } else {
+                right += lum(p);
+            }
+        }
+        let centre = lum(&px[(h / 2) * w + w / 2]);
+        eprintln!(
+            "--rotate-env {deg}: left half {left:.2}, right half {right:.2}, centre {centre:.3}"
+        );
+        (left, right, centre, px)
+    };
+    let (l0, r0, c0, p0) = render("0");
+    let (lp, rp, cp, _) = render("90");
+    let (lm, rm, cm, _) = render("-90");
+    // Unrotated, the cap faces the camera: both halves alike, the centre lit.
+    assert!(
+        (l0 - r0).abs() < 0.05 * (l0 + r0),
+        "unrotated: {l0} vs {r0}"
+    );
+    // +90 degrees takes the map's +Z to world +X: the right half is lit, the left one dim.
+    assert!(rp > 3.0 * lp, "+90: right {rp} not over 3x left {lp}");
+    // -90 degrees: the mirror picture.
+    assert!(lm > 3.0 * rm, "-90: left {lm} not over 3x right {rm}");
+    assert!(
+        (lm - rp).abs() < 0.05 * rp && (rm - lp).abs() < 0.05 * lp.max(0.05 * rp),
+        "+90 ({lp}, {rp}) and -90 ({lm}, {rm}) are not mirrors"
+    );
+    // The cap turned away from the front: the centre darkens.
+    assert!(cp < 0.8 * c0 && cm < 0.8 * c0, "centre {c0}, {cp}, {cm}");
+    // A full turn is no turn.
+    let (_, _, _, p360) = render("360");
+    for (x, y) in p0.iter().zip(&p360) {
         for c in 0..3 {
-            assert!((x[c] - y[c]).abs() < 1e-4);
+            assert!(
+                (x[c] - y[c]).abs() <= 1e-3 * x[c].abs() + 1e-4,
+                "{x:?} vs {y:?}"
+            );
         }
     }
+    assert_eq!(std::fs::read(&bundle).unwrap(), baked, "the bundle changed");
+    let a = d.join("r0.exr");
+    let b = d.join("r90.exr");
     let o = relight(&[
         "compare",
         a.to_str().unwrap(),

@@ -93,7 +93,7 @@ fn the_history_check_catches_what_it_should() {
     for bad in [
         "see issue 10",
         "Sessions 29-32",
-        "docs/RESULTS.md §8",
+        "docs/notes/2026-11-to-12-development-log.md §8",
         "(Issues 3)",
     ] {
         assert_eq!(history_lines(bad).len(), 1, "{bad}");

@@ -2,17 +2,18 @@
 //! `spot` emitters, `path` integrator, max_depth 3: direct light and one bounce) in a small
 //! closed room, black environment.
 //!
-//! The agreement measure is that of `mitsuba_agreement.rs`: `relRMSE = sqrt(Σ (r - m)^2 /
-//! Σ m^2)` against the noise floor `sqrt(Σ (var_r + var_m) / Σ m^2)` (relight's variance of
-//! the mean, Mitsuba's from two seeds), asserted `relRMSE <= 1.5 floor` (room for the
-//! variance estimates; a systematic difference of 1.1 x the floor fails), and the mean
-//! difference within 4 standard errors. SKIPS with a printed reason without Mitsuba
+//! The agreement measure and its bounds are the shared ones of `mitsuba_agreement.rs`
+//! (`common::agreement`, `Agreement::holds`: `relRMSE <= 1.5 floor` and the mean difference
+//! within 4 standard errors). Negative control: relight's render of the same room with a
+//! slightly wrong light (moved 10 cm, or a spot's cone 5 degrees narrower) must fail that
+//! check against the same Mitsuba render. SKIPS with a printed reason without Mitsuba
 //! (`RELIGHT_MITSUBA_PYTHON`; `RELIGHT_REQUIRE_REFERENCE=1` makes that a failure).
 
+mod common;
+use common::{agreement, mitsuba_render_lit, object_mask};
+
 use relight_render::light::{PointLight, Spot};
-use relight_render::mitsuba::{export_mitsuba_lit, mitsuba_python, render_mitsuba};
 use relight_render::pathtrace::{render_with_lights, PtSettings};
-use relight_render::Image;
 use relight_scene::accel::build_default;
 use relight_scene::camera::Camera;
 use relight_scene::material::Material;
@@ -50,15 +51,13 @@ fn room() -> Scene {
     }
 }
 
-fn agree(name: &str, light: PointLight) {
-    let python = match mitsuba_python() {
-        Ok(p) => p,
-        Err(e) => {
-            relight_testdata::skip(&format!("Mitsuba comparison {name}: {e}"));
-            return;
-        }
-    };
+/// relight's path tracer with `light` agrees with Mitsuba's render of the room with it, and
+/// with `wrong` it does not.
+fn agree(name: &str, light: PointLight, wrong: PointLight) {
     let scene = room();
+    let Some(m) = mitsuba_render_lit(name, &scene, 256, 3, &[light]) else {
+        return;
+    };
     let caster = build_default(&scene.mesh);
     let s = PtSettings {
         spp: 256,
@@ -67,45 +66,47 @@ fn agree(name: &str, light: PointLight) {
         show_background: false,
         ..Default::default()
     };
-    let (r, var_r) = render_with_lights(&scene, caster.as_ref(), &s, &[light]);
-    let dir = std::env::temp_dir().join(format!("relight-local-{name}-{}", std::process::id()));
-    let json = export_mitsuba_lit(&scene, &dir, 256, 3, &[light]).expect("export");
-    let (imgs, report) =
-        render_mitsuba(&python, &json, &dir.join("mitsuba"), &[1, 2], None).expect("mitsuba");
-    let _ = std::fs::remove_dir_all(&dir);
-    let (a, b): (&Image, &Image) = (&imgs[0], &imgs[1]);
-    let (mut d2, mut m2, mut floor2, mut diff, mut var_sum) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
-    for i in 0..r.pixels.len() {
-        let m = (a.pixels[i] + b.pixels[i]) * 0.5;
-        let vm = (a.pixels[i] - b.pixels[i]) * (a.pixels[i] - b.pixels[i]) * 0.25;
-        for c in 0..3 {
-            let (rc, mc) = (r.pixels[i][c] as f64, m[c] as f64);
-            d2 += (rc - mc) * (rc - mc);
-            m2 += mc * mc;
-            floor2 += var_r.pixels[i][c] as f64 + vm[c] as f64;
-            diff += rc - mc;
-            var_sum += var_r.pixels[i][c] as f64 + vm[c] as f64;
-        }
-    }
-    let (rel, floor) = ((d2 / m2).sqrt(), (floor2 / m2).sqrt());
-    let sigmas = diff.abs() / var_sum.sqrt();
-    println!("{name}: relRMSE {rel:.4}, floor {floor:.4}, mean {sigmas:.2} sigma ({report})");
+    let mask = object_mask(&scene, caster.as_ref());
     assert!(
-        rel <= 1.5 * floor,
-        "{name}: relRMSE {rel} > 1.5 x floor {floor}"
+        mask.iter().all(|&m| m),
+        "the room is closed: every pixel sees a wall"
+    );
+    let (r, var_r) = render_with_lights(&scene, caster.as_ref(), &s, &[light]);
+    let ag = agreement(&r, &var_r, &m.mean, &m.var, &mask);
+    println!(
+        "{name}: relRMSE {:.4}, floor {:.4}, mean {:.2} sigma ({})",
+        ag.rel_rmse, ag.floor, ag.bias_sigmas, m.report
     );
     assert!(
-        sigmas < 4.0,
-        "{name}: mean difference {sigmas} standard errors"
+        ag.holds(),
+        "{name}: relRMSE {} (floor {}), mean difference {} standard errors",
+        ag.rel_rmse,
+        ag.floor,
+        ag.bias_sigmas
+    );
+    let (r, var_r) = render_with_lights(&scene, caster.as_ref(), &s, &[wrong]);
+    let bad = agreement(&r, &var_r, &m.mean, &m.var, &mask);
+    println!(
+        "{name}, control (wrong light): relRMSE {:.4}, floor {:.4}, mean {:.2} sigma",
+        bad.rel_rmse, bad.floor, bad.bias_sigmas
+    );
+    assert!(
+        !bad.holds(),
+        "{name}: the wrong light passes (relRMSE {}, floor {}, {} sigma): the check cannot see it",
+        bad.rel_rmse,
+        bad.floor,
+        bad.bias_sigmas
     );
 }
 
 #[test]
 fn point_light_one_bounce_matches_mitsuba() {
-    agree(
-        "point",
-        PointLight::new(Vec3::new(0.2, 1.7, 0.1), Vec3::splat(2.0)),
-    );
+    let light = PointLight::new(Vec3::new(0.2, 1.7, 0.1), Vec3::splat(2.0));
+    let wrong = PointLight {
+        position: light.position + Vec3::new(0.1, 0.0, 0.0),
+        ..light
+    };
+    agree("point", light, wrong);
 }
 
 #[test]
@@ -118,5 +119,12 @@ fn spot_light_one_bounce_matches_mitsuba() {
             cutoff_deg: 35.0,
         }),
     };
-    agree("spot", light);
+    let wrong = PointLight {
+        spot: Some(Spot {
+            cutoff_deg: 30.0,
+            ..light.spot.unwrap()
+        }),
+        ..light
+    };
+    agree("spot", light, wrong);
 }

@@ -35,10 +35,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 mod common;
-use common::{agreement, mitsuba_render, object_mask, MitsubaResult};
-
-/// Allowed ratio of relRMSE to the combined noise floor (see the module docs).
-const K: f64 = 1.5;
+use common::{agreement, mitsuba_render, object_mask, MitsubaResult, K};
 
 /// A smooth unit-radius sphere (UV sphere, exact normals) with material `mat`.
 fn sphere(center: Vec3, radius: f32, mat: u32) -> TriMesh {

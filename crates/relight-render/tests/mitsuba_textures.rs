@@ -26,10 +26,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 mod common;
-use common::{agreement, mitsuba_render, object_mask};
-
-/// Allowed ratio of relRMSE to the combined noise floor (as `mitsuba_agreement.rs`).
-const K: f64 = 1.5;
+use common::{agreement, mitsuba_render, object_mask, K};
 
 /// A smooth environment: 0.15 everywhere plus a warm lobe `6 max(0, d.s)^6` from the upper
 /// right front.

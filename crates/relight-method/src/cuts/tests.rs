@@ -2,7 +2,7 @@
 //! corruptions refused by name.
 
 use super::*;
-use crate::test_scene::with_input;
+use crate::test_scene::{lone_sphere, with_desc, LONE_ALBEDO};
 use crate::MethodError;
 use crate::{Baked, FrameOptions, FrameSettings};
 use relight_bake::cuts::bake_range;
@@ -12,10 +12,20 @@ use std::path::Path;
 
 /// A small real bake of the test scene (512 lights), of `range` (all vertices: `None`).
 fn baked(f16: bool, range: Option<std::ops::Range<usize>>) -> CutsBaked {
-    with_input(0.5, |input| {
+    baked_scene(crate::test_scene::desc(0.5), 512, f16, range)
+}
+
+/// [`baked`] of scene `desc` with `lights` light samples.
+fn baked_scene(
+    desc: relight_scene::scene_file::SceneDesc,
+    lights: u32,
+    f16: bool,
+    range: Option<std::ops::Range<usize>>,
+) -> CutsBaked {
+    with_desc(desc, |input| {
         let caster = build(&input.scene.mesh, Backend::Bvh).unwrap();
         let settings = CutsBakeSettings {
-            lights: 512,
+            lights,
             seed: 2,
             ..Default::default()
         };
@@ -162,12 +172,13 @@ fn corruptions_are_refused_by_name() {
     assert!(msg.contains("cuts_dirs"), "{msg}");
 }
 
+/// Through the method seam (`Baked::frame`, `Frame::render`), a lone Lambert sphere under
+/// constant radiance 1 ([`lone_sphere`], convex: every point sees its whole upper hemisphere)
+/// renders at its albedo on every pixel well inside its disc.
 #[test]
-fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
+fn a_frame_through_the_seam_renders_a_lone_sphere_at_its_albedo() {
     use crate::MethodKind;
-    // The test scene's sphere sits on a plane; a lone sphere is convex: its cuts see the
-    // whole upper hemisphere of every vertex.
-    let b = baked(false, None);
+    let b = baked_scene(lone_sphere(), 2048, false, None);
     let whole: Baked = b.into();
     assert_eq!(whole.kind(), crate::BakeKind::Cuts);
     let mut frame = whole
@@ -179,28 +190,39 @@ fn a_frame_through_the_seam_renders_the_albedo_of_a_convex_sphere() {
     frame.set_environment(&env).unwrap();
     let camera = whole.scene().desc.camera;
     let out = frame.render(&camera, &FrameOptions::default());
-    assert_eq!(out.image.width, camera.width as usize);
+    let w = camera.width as usize;
+    assert_eq!(out.image.width, w);
     assert!(out
         .image
         .pixels
         .iter()
         .all(|p| p.is_finite() && p.min_element() >= 0.0));
-    // Lit pixels exist and none exceeds the brightest albedo (0.8) by more than the cut
-    // approximation (2%).
-    let max = out
-        .image
-        .pixels
-        .iter()
-        .map(|p| p.max_element())
-        .fold(0.0, f32::max);
-    assert!(max > 0.1 && max < 0.8 * 1.02, "{max}");
+    // Pixels within 4 of the disc's 8.5-pixel radius of the image centre: the albedo, within
+    // the cut approximation (cosine cut means times light cluster means, 16-bit quantisation
+    // of the cuts' values): 2 %, as the same check of the binary (relight-cli's cuts tests).
+    // Measured 2026-12-07: 0.9-1.8 % darker, every pixel (at 512 lights and 8 rings 5-7 %).
+    let (cx, cy) = (camera.width as f32 / 2.0, camera.height as f32 / 2.0);
+    let mut inside = 0;
+    for (k, p) in out.image.pixels.iter().enumerate() {
+        let (x, y) = ((k % w) as f32 + 0.5, (k / w) as f32 + 0.5);
+        if (x - cx).hypot(y - cy) < 4.0 {
+            inside += 1;
+            for (c, a) in p.to_array().iter().zip(LONE_ALBEDO) {
+                assert!(
+                    (c - a).abs() < 0.02 * a,
+                    "pixel {k}: {p}, albedo {LONE_ALBEDO:?}"
+                );
+            }
+        }
+    }
+    assert!(inside > 40, "{inside} pixels inside");
     assert!(
         frame.summary().contains("light cut 256 nodes"),
         "{}",
         frame.summary()
     );
     // A part cannot be rendered.
-    let part: Baked = baked(false, Some(0..10)).into();
+    let part: Baked = baked_scene(lone_sphere(), 512, false, Some(0..10)).into();
     assert!(part
         .frame(&FrameSettings::default_for(MethodKind::Cuts))
         .is_err());

@@ -1,4 +1,4 @@
-//! More lobes must never be worse. A small glossy scene with self-shadowing, baked
+//! Issue 10: more lobes must never be worse. A small glossy scene with self-shadowing, baked
 //! with 1, 2 and 3 direct lobes (the default bake and frame settings), rendered by the frame
 //! and compared with relight's own path tracer (direct lighting, the reference that matches
 //! Mitsuba 3 to its noise, docs/RESULTS-pathtracer.md), so no Mitsuba is needed.
@@ -188,7 +188,7 @@ fn monotone(errors: &[f64], noise: f64) -> bool {
 /// for 1, 2, 3 lobes, reference noise 0.037; 2026-12-03, after the fitter's Jacobian was
 /// written per kernel (same formulas, other rounding, so other flood-fill paths): 0.305,
 /// 0.214, 0.210 (the energy frame of 2026-12-01, `ShadeOptions::ENERGY`:
-/// 0.307, 0.215, 0.189). Other bake options fail it (nested lobes with the energy term
+/// 0.307, 0.215, 0.189). The bake options tried in issue 10 fail it (nested lobes with the energy term
 /// gave 0.292, 0.338, 0.273); the paper's linear blend gave 0.300, 0.299, 0.301.
 #[test]
 fn more_direct_lobes_are_never_worse() {
@@ -213,7 +213,7 @@ fn more_direct_lobes_are_never_worse() {
 }
 
 /// The same check with the lobes moved to their moments after the fit
-/// (`--lobe-shape moments`).
+/// (`--lobe-shape moments`, issue 10).
 #[test]
 fn more_moment_shaped_lobes_are_never_worse() {
     let fit = bake_sg::SgFitSettings {
@@ -252,10 +252,10 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
     );
 }
 
-/// GGX-kernel lobes in the half-vector domain, nested (the default
+/// Issue 10 items 1 and 3: GGX-kernel lobes in the half-vector domain, nested (the default
 /// order for two or more there), through their default frame
 /// (`ShadeOptions::default_for`: one lobe blended linearly; two or more views by energy,
-/// corners linear, unmatched): each added lobe, up to four (`N + 1` for
+/// corners linear, unmatched): each added lobe, up to four (the item's `N + 1` for
 /// `N = 1..3`), is no worse than one fewer within the reference's noise, on both small
 /// scenes. Also printed, not asserted: every lobe count through both frames. Measured
 /// 2026-12-04 with the default frame: sphere 0.0750, 0.0808, 0.1070, 0.1249 (noise 0.0368),
@@ -263,21 +263,28 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
 /// noise, **but the trend is upward**: four lobes are 1.4 and 1.1 noises worse than one on
 /// these coarse 16-texel scenes (a 4x denser sphere: 0.0643, 0.0671, 0.0847 for 1-3), while
 /// the evaluation's scenes are flat within a sixth of their noise (Spot 9.2 / 9.3 / 9.2 /
-/// 10.0 %, St Peter's 8.1 / 8.1 / 8.3 / 8.5 %; docs/RESULTS.md, section sg). The
+/// 10.0 %, St Peter's 8.1 / 8.1 / 8.3 / 8.5 %; docs/notes/2026-11-to-12-development-log.md §8, sessions 29-32). The
 /// cause (the joint refinement moves the first lobe) and the options tried against it are in
-/// docs/RESULTS.md, section sg. The linear frame at every count gave 0.075, 0.081, 0.108
+/// docs/notes/2026-11-to-12-development-log.md §8, session 32. The linear frame at every count gave 0.075, 0.081, 0.108
 /// and 0.210, 0.230, 0.245 for 1-3 lobes; on St Peter's conductor it gave 8.1, 16.3, 12.4 %
 /// against 8.1, 8.1, 8.3 % with the default.
+///
+/// Not asserted: four lobes within one noise of one lobe. Nested lobes fail it on both scenes
+/// (measured 2026-12-07, as above: sphere 0.1249 against 0.0750 + 0.0368, shadowed highlight
+/// 0.2516 against 0.2102 + 0.0363; three lobes pass, 0.1070 and 0.2239), so the drift of two or more nested half-vector lobes is a known defect of that order, not
+/// of the test; the default bake fits one lobe, and additive lobes are bounded
+/// (`additive_half_vector_lobes_are_never_worse`).
 #[test]
 fn more_half_vector_lobes_are_never_worse() {
-    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Nested);
+    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Nested, false);
 }
 
 /// Half-vector GGX lobes fitted in `order`, 1-4 of them, on both small scenes through their
 /// default frame (`ShadeOptions::default_for`: one lobe the paper's, two or more the nested
 /// frame): each added lobe no worse than one fewer within the reference's noise. Every lobe
 /// count is printed through both frames.
-fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
+/// With `bound_drift`, four lobes are also no worse than one by more than the noise.
+fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder, bound_drift: bool) {
     let fit = bake_sg::SgFitSettings {
         lobe_kernel: bake_sg::SgKernel::Ggx,
         lobe_domain: bake_sg::SgDomain::HalfVector,
@@ -302,31 +309,42 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder) {
             monotone(&default, noise),
             "{name}: {default:?} (noise {noise})"
         );
+        // Steps each within the noise may still add up: the last count no worse than one
+        // lobe by more than one noise either (see `more_half_vector_lobes_are_never_worse`
+        // for why nested lobes are exempt).
+        assert!(
+            !bound_drift || default[3] <= default[0] + noise,
+            "{name}: four lobes {} drift above one lobe {} by more than the noise {noise}: {default:?}",
+            default[3],
+            default[0]
+        );
     }
 }
 
-/// The same with [`bake_sg::LobeOrder::Additive`] (each further lobe fitted alone to
+/// Issue 10 item 1 with [`bake_sg::LobeOrder::Additive`] (each further lobe fitted alone to
 /// what the earlier ones leave, which stay put), through its default frame (`ShadeOptions::ADDITIVE_HALF_VECTOR` from two lobes):
 /// each added lobe, up to four, no worse than one fewer within the reference's noise, on
 /// both small scenes. Measured 2026-12-05: sphere 0.0750, 0.0753, 0.0734, 0.0733 (noise
 /// 0.0368; nested: up to 0.1249), shadowed highlight 0.2102, 0.2179, 0.2198, 0.2204 (noise
 /// 0.0363; nested: 0.2143, 0.2239, 0.2516): after the second lobe flat, where nested lobes
-/// keep drifting upward. An earlier additive fit (the residual of slot 1 before its
+/// keep drifting upward. Session 36's additive fit (the residual of slot 1 before its
 /// peak was bounded, no gate) through the nested frame gave 0.2292, 0.2313, 0.2320 on the
-/// shadowed highlight.
+/// shadowed highlight (docs/notes/2026-11-to-12-development-log.md §8, session 37).
+/// Also asserted: four lobes no worse than one by more than the noise (measured 2026-12-07 as
+/// above: 0.0733 and 0.2204 against 0.0750 and 0.2102).
 #[test]
 fn additive_half_vector_lobes_are_never_worse() {
-    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive);
+    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive, true);
 }
 
-/// One lobe of the GGX-shaped kernel (`--lobe-kernel ggx`,
+/// Issue 10 item 3: one lobe of the GGX-shaped kernel (`--lobe-kernel ggx`,
 /// `relight_sphere::sg_kernel`) on the GGX sphere scene, against one Gaussian lobe: no worse
 /// by more than the reference's noise. Measured 2026-12-03: 0.317 against 0.305, noise 0.037.
 /// The kernel does not win here: this 16-texel scene's lobes sit at the sharpness bound
 /// (median 64), so the lobe's tails are not what limits it. The shape's gain is tested on the
 /// fit itself (`relight_sphere::sg_fit` tests,
 /// `one_ggx_kernel_lobe_fits_a_ggx_lobe_better_than_one_gaussian`) and measured on the
-/// evaluation's scenes (docs/RESULTS.md, section sg). A frame that read the kernel's lobes wrongly
+/// evaluation's scenes (docs/notes/2026-11-to-12-development-log.md §8). A frame that read the kernel's lobes wrongly
 /// (as Gaussians, or with the Gaussian's integral) is several noises off.
 #[test]
 fn one_ggx_kernel_lobe_is_no_worse_than_one_gaussian() {
@@ -396,7 +414,7 @@ fn one_lobe_bake(
     bake_sg::bake(&scene.mesh, &scene.materials, None, caster, &settings).unwrap()
 }
 
-/// One GGX-kernel lobe in the half-vector domain (`--lobe-domain
+/// Issue 10 item 3: one GGX-kernel lobe in the half-vector domain (`--lobe-domain
 /// half-vector`) against one in the light domain, both through the frame (prefiltered chain,
 /// the tabulated Gaussians of `relight_sphere::half_vector` for the former). Control: the
 /// half-vector bake's lobes read as light-domain lobes.

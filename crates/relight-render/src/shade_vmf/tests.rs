@@ -169,8 +169,13 @@ fn glossy_scene_matches_the_path_tracer() {
     // lobe per glossy light-path class, eq. 6 interpolation across level-2 views and across
     // triangles of a 16 x 32 sphere, 256 paths per slice. The bounds leave margin for a
     // different noise draw; a lost class or a wrong frame moves both far past them.
+    // Re-measured 2026-12-07: 0.0544, noise 0.0187, so 0.0511 without the noise; bounded by
+    // that plus 20 % in quadrature with the run's noise (0.064 today; the run is seeded). The
+    // 0.09 this replaces passed a 1.7x worse method.
+    const E: f64 = 0.0511;
+    let bound = (1.2 * E).hypot(m.floor);
     assert!(m.n > 500);
-    assert!(m.rel < 0.09, "relative RMSE {}", m.rel);
+    assert!(m.rel <= bound, "relative RMSE {} above {bound}", m.rel);
     assert!((m.ratio - 1.0).abs() < 0.05, "mean ratio {}", m.ratio);
     assert!(m.chain < 0.03, "prefiltered chain vs exact: {}", m.chain);
 }

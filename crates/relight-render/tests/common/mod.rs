@@ -2,7 +2,8 @@
 //! scene, the object mask and the agreement measure (`mitsuba_agreement.rs` documents it).
 #![allow(dead_code)] // each test file uses a subset
 
-use relight_render::mitsuba::{export_mitsuba, mitsuba_python, render_mitsuba};
+use relight_render::light::PointLight;
+use relight_render::mitsuba::{export_mitsuba_lit, mitsuba_python, render_mitsuba};
 use relight_render::Image;
 use relight_scene::accel::{Ray, RayCaster};
 use relight_scene::scene::Scene;
@@ -30,6 +31,20 @@ pub struct Agreement {
     pub floor: f64,
     /// `|Σ (a - b)|` in standard errors.
     pub bias_sigmas: f64,
+}
+
+/// Allowed ratio of relRMSE to the combined noise floor (`mitsuba_agreement.rs` derives it).
+pub const K: f64 = 1.5;
+
+/// Allowed mean difference, in standard errors (1 in 15 000 by chance).
+pub const MAX_BIAS_SIGMAS: f64 = 4.0;
+
+impl Agreement {
+    /// Whether the two images agree: `relRMSE <= K floor` and the mean difference within
+    /// [`MAX_BIAS_SIGMAS`] standard errors.
+    pub fn holds(&self) -> bool {
+        self.rel_rmse <= K * self.floor && self.bias_sigmas < MAX_BIAS_SIGMAS
+    }
 }
 
 pub fn agreement(a: &Image, var_a: &Image, b: &Image, var_b: &Image, mask: &[bool]) -> Agreement {
@@ -73,6 +88,17 @@ pub fn mitsuba_render(
     spp: u32,
     max_depth: i32,
 ) -> Option<MitsubaResult> {
+    mitsuba_render_lit(name, scene, spp, max_depth, &[])
+}
+
+/// [`mitsuba_render`] with point and spot `lights` besides the environment.
+pub fn mitsuba_render_lit(
+    name: &str,
+    scene: &Scene,
+    spp: u32,
+    max_depth: i32,
+    lights: &[PointLight],
+) -> Option<MitsubaResult> {
     let python = match mitsuba_python() {
         Ok(p) => p,
         Err(e) => {
@@ -81,7 +107,7 @@ pub fn mitsuba_render(
         }
     };
     let dir = std::env::temp_dir().join(format!("relight-mitsuba-{name}-{}", std::process::id()));
-    let json = export_mitsuba(scene, &dir, spp, max_depth).expect("export");
+    let json = export_mitsuba_lit(scene, &dir, spp, max_depth, lights).expect("export");
     let (imgs, report) = render_mitsuba(&python, &json, &dir.join("mitsuba"), &[1, 2], None)
         .expect("mitsuba render");
     let (a, b) = (&imgs[0], &imgs[1]);
