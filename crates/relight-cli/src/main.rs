@@ -10,7 +10,6 @@ mod bake;
 mod compare;
 mod decompose;
 mod eval;
-mod help_markdown;
 mod info;
 mod reference;
 mod render;
@@ -129,6 +128,10 @@ struct BenchArgs {
 
 /// Restore the default SIGPIPE action, so `relight ... | head` ends quietly like other Unix
 /// tools instead of panicking on a closed stdout (Rust ignores SIGPIPE by default).
+/// The command that regenerates `docs/cli.md` (named in its header).
+const REGENERATE: &str =
+    "cargo run --release -p relight-cli --features view -- help-markdown > docs/cli.md";
+
 #[cfg(unix)]
 fn default_sigpipe() {
     extern "C" {
@@ -204,7 +207,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
             out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);
         }
-        Cmd::HelpMarkdown => println!("{}", help_markdown::markdown(Cli::command())),
+        Cmd::HelpMarkdown => println!("{}", relight_clidoc::markdown(Cli::command(), REGENERATE)),
         #[cfg(feature = "view")]
         Cmd::View(a) => relight_view::cli::run_cli(a)?,
         #[cfg(not(feature = "view"))]

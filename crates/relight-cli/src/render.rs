@@ -8,7 +8,7 @@ use relight_method::hybrid::HybridSettings;
 use relight_method::sg::SgFrameSettings;
 use relight_method::sh::ShFrameSettings;
 use relight_method::vmf::VmfFrameSettings;
-use relight_method::{choose, read_any, BakeKind, FrameOptions, FrameSettings, MethodKind};
+use relight_method::{choose, read_any, FrameOptions, FrameSettings, MethodKind};
 use relight_render::write_image;
 use serde_json::json;
 use std::path::PathBuf;
@@ -113,12 +113,8 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     let env = a.env.build(desc, &a.bundle)?;
     let (method, why) = match a.method {
         Some(method) => (method, None),
-        None if baked.kind() == BakeKind::Sh && args::given(m, "window") => (
-            MethodKind::Sh,
-            Some("an sh bake, and --window applies to sh".to_string()),
-        ),
         None => {
-            let c = choose::choose_frame_method(&baked, &env)?;
+            let c = choose::choose_frame_method(&baked, &env, args::given(m, "window"))?;
             (c.method, Some(c.why))
         }
     };

@@ -200,11 +200,16 @@ pub fn method_warning(
 
 /// The method that shows `baked` under `env` when none is given: the bake's own, except that
 /// an `sh` bake is shown with `hybrid` when the environment has a light the decomposition
-/// extracts (module docs).
+/// extracts (module docs). `window`: the user windows the lighting's SH, which only `sh`
+/// applies, so an `sh` bake stays `sh` (without decomposing the environment).
 ///
 /// # Errors
 /// [`MethodError::Environment`] when the decomposition refuses the map.
-pub fn choose_frame_method(baked: &Baked, env: &Environment) -> Result<Choice, MethodError> {
+pub fn choose_frame_method(
+    baked: &Baked,
+    env: &Environment,
+    window: bool,
+) -> Result<Choice, MethodError> {
     let own = baked.kind().methods()[0];
     let Baked::Sh(sh) = baked else {
         return Ok(Choice {
@@ -212,6 +217,12 @@ pub fn choose_frame_method(baked: &Baked, env: &Environment) -> Result<Choice, M
             why: format!("the bundle holds a {} bake", baked.kind().name()),
         });
     };
+    if window {
+        return Ok(Choice {
+            method: MethodKind::Sh,
+            why: "an sh bake, and a window of the lighting's SH applies to sh".into(),
+        });
+    }
     let (d, _) = HybridSettings::default().resolve(sh.transfer.order)?;
     let dec = decompose_env(env, &d)?;
     if dec.lights.is_empty() {
@@ -349,14 +360,14 @@ mod tests {
         });
         let baked = Baked::Sh(baked);
         let flat = Environment::new(relight_sphere::EnvMap::constant(Vec3::ONE));
-        let c = choose_frame_method(&baked, &flat).unwrap();
+        let c = choose_frame_method(&baked, &flat, false).unwrap();
         assert_eq!(c.method, MethodKind::Sh, "{c}");
         let sun = Vec3::new(0.3, 0.8, 0.2).normalize();
         let sky = Environment::new(relight_sphere::decompose::sky_with_discs(
             32,
             &[(sun, 2.0, Vec3::splat(300.0))],
         ));
-        let c = choose_frame_method(&baked, &sky).unwrap();
+        let c = choose_frame_method(&baked, &sky, false).unwrap();
         assert_eq!(c.method, MethodKind::Hybrid, "{c}");
         assert!(c.why.contains("1 bright light"), "{c}");
     }
