@@ -79,17 +79,6 @@ impl MethodKind {
     }
 }
 
-/// The name of a material's kind as scene files spell it (`ggx_conductor`).
-pub fn material_kind(m: &Material) -> &'static str {
-    match m {
-        Material::Lambert { .. } => "lambert",
-        Material::BlinnPhong { .. } => "blinn_phong",
-        Material::GgxConductor { .. } => "ggx_conductor",
-        Material::GgxPlastic { .. } => "ggx_plastic",
-        Material::Ward { .. } => "ward",
-    }
-}
-
 /// A label per material of the scene built from `desc` (`materials` of them), for messages:
 /// the shape that carries it (`shapes[1] (sphere)`) when every shape carries one material,
 /// else `material 3`.
@@ -115,7 +104,7 @@ fn unrendered(
     let mut out = Vec::new();
     for (i, m) in materials.iter().enumerate() {
         if !method.renders(m) {
-            out.push(format!("{} is {}", labels[i], material_kind(m)));
+            out.push(format!("{} is {}", labels[i], m.kind_name()));
         } else if !method.renders_maps() && maps.of(i as u32).is_some() {
             out.push(format!("{} has texture or normal maps", labels[i]));
         }
@@ -143,7 +132,7 @@ pub fn choose_bake_method(desc: &SceneDesc, materials: &[Material], maps: &Scene
     }
     let glossy: Vec<String> = (materials.iter().enumerate())
         .filter(|(_, m)| !MethodKind::Sh.renders(m))
-        .map(|(i, m)| format!("{} is {}", labels[i], material_kind(m)))
+        .map(|(i, m)| format!("{} is {}", labels[i], m.kind_name()))
         .collect();
     if glossy.is_empty() {
         return Choice {

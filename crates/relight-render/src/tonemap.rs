@@ -64,11 +64,10 @@ pub const KEY: f32 = 0.18;
 /// positive values cannot drag the mean of logs down without bound. `None` when no pixel is
 /// lit.
 pub fn log_average_luminance(img: &Image) -> Option<f32> {
-    let lum = |c: &Vec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
     let lit = || {
         img.pixels
             .iter()
-            .map(lum)
+            .map(|&c| crate::compare::luminance(c))
             .filter(|l| l.is_finite() && *l > 0.0)
             .map(f64::from)
     };

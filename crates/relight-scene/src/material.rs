@@ -434,6 +434,17 @@ impl Material {
         }
     }
 
+    /// The name of the material's kind as scene files spell it (`"type": "ggx_conductor"`).
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Material::Lambert { .. } => "lambert",
+            Material::BlinnPhong { .. } => "blinn_phong",
+            Material::GgxConductor { .. } => "ggx_conductor",
+            Material::GgxPlastic { .. } => "ggx_plastic",
+            Material::Ward { .. } => "ward",
+        }
+    }
+
     /// Whether the material is purely Lambertian (no view-dependent lobe).
     pub fn is_diffuse_only(&self) -> bool {
         match *self {
@@ -827,6 +838,40 @@ mod tests {
         }
         fn vec2(&mut self) -> Vec2 {
             Vec2::new(self.next_f32(), self.next_f32())
+        }
+    }
+
+    /// `kind_name` is the `type` a scene file gives, for every kind of material.
+    #[test]
+    fn kind_name_is_the_scene_files_type() {
+        let v = Vec3::splat(0.3);
+        for m in [
+            Material::Lambert { albedo: v },
+            Material::BlinnPhong {
+                diffuse: v,
+                specular: v,
+                exponent: 10.0,
+            },
+            Material::GgxConductor {
+                specular: v,
+                alpha: 0.2,
+            },
+            Material::GgxPlastic {
+                diffuse: v,
+                specular: v,
+                alpha: 0.2,
+                ior: 1.5,
+            },
+            Material::Ward {
+                diffuse: v,
+                specular: v,
+                alpha_x: 0.1,
+                alpha_y: 0.2,
+                tangent: Vec3::X,
+            },
+        ] {
+            let json = serde_json::to_value(m).unwrap();
+            assert_eq!(json["type"], m.kind_name(), "{m:?}");
         }
     }
 
