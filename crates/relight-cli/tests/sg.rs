@@ -357,7 +357,7 @@ fn lobes_are_chosen_by_material_unless_an_option_is_given() {
         assert!(o.status.success(), "{}", stderr(&o));
         stdout(&o)
     };
-    let half = "ggx, half-vector domain, nested";
+    let half = "ggx, half-vector domain, additive";
     let light = "gaussian, light domain, joint";
     for (sc, extra, chosen, recorded) in [
         (&conductor, &[][..], Some(half), half),

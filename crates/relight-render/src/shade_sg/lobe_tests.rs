@@ -252,30 +252,19 @@ fn shadowed_highlight_more_lobes_are_never_worse() {
     );
 }
 
-/// Issue 10 items 1 and 3: GGX-kernel lobes in the half-vector domain, nested (the default
-/// order for two or more there), through their default frame
-/// (`ShadeOptions::default_for`: one lobe blended linearly; two or more views by energy,
-/// corners linear, unmatched): each added lobe, up to four (the item's `N + 1` for
-/// `N = 1..3`), is no worse than one fewer within the reference's noise, on both small
-/// scenes. Also printed, not asserted: every lobe count through both frames. Measured
-/// 2026-12-04 with the default frame: sphere 0.0750, 0.0808, 0.1070, 0.1249 (noise 0.0368),
-/// shadowed highlight 0.2102, 0.2143, 0.2239, 0.2516 (noise 0.0363). Each step is within one
-/// noise, **but the trend is upward**: four lobes are 1.4 and 1.1 noises worse than one on
-/// these coarse 16-texel scenes (a 4x denser sphere: 0.0643, 0.0671, 0.0847 for 1-3), while
-/// the evaluation's scenes are flat within a sixth of their noise (Spot 9.2 / 9.3 / 9.2 /
-/// 10.0 %, St Peter's 8.1 / 8.1 / 8.3 / 8.5 %; docs/notes/2026-11-to-12-development-log.md §8, sessions 29-32). The
-/// cause (the joint refinement moves the first lobe) and the options tried against it are in
-/// docs/notes/2026-11-to-12-development-log.md §8, session 32. The linear frame at every count gave 0.075, 0.081, 0.108
-/// and 0.210, 0.230, 0.245 for 1-3 lobes; on St Peter's conductor it gave 8.1, 16.3, 12.4 %
-/// against 8.1, 8.1, 8.3 % with the default.
-///
-/// Not asserted: four lobes within one noise of one lobe. Nested lobes fail it on both scenes
-/// (measured 2026-12-07, as above: sphere 0.1249 against 0.0750 + 0.0368, shadowed highlight
-/// 0.2516 against 0.2102 + 0.0363; three lobes pass, 0.1070 and 0.2239), so the drift of two or more nested half-vector lobes is a known defect of that order, not
-/// of the test; the default bake fits one lobe, and additive lobes are bounded
-/// (`additive_half_vector_lobes_are_never_worse`).
+/// GGX-kernel lobes in the half-vector domain, nested (`--lobe-order nested`, not the
+/// default), through their default frame (`ShadeOptions::default_for`: one lobe blended
+/// linearly; two or more views by energy, corners linear, unmatched): each added lobe, up to
+/// four, is no worse than one fewer within the reference's noise, on both small scenes.
+/// Measured 2026-12-04: sphere 0.0750, 0.0808, 0.1070, 0.1249 (noise 0.0368), shadowed
+/// highlight 0.2102, 0.2143, 0.2239, 0.2516 (noise 0.0363). Each step is within one noise,
+/// **but the trend is upward**: four nested lobes are 1.4 and 1.1 noises worse than one, so
+/// they fail the end-to-end bound (four lobes within one noise of one) that the default order
+/// meets ([`default_half_vector_lobes_are_never_worse`]); that drift is why nested is not the
+/// default. The cause (the joint refinement moves the first lobe) is in
+/// docs/notes/2026-11-to-12-development-log.md §8, session 32.
 #[test]
-fn more_half_vector_lobes_are_never_worse() {
+fn nested_half_vector_lobes_step_within_the_noise() {
     half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Nested, false);
 }
 
@@ -310,8 +299,8 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder, bound_drift: boo
             "{name}: {default:?} (noise {noise})"
         );
         // Steps each within the noise may still add up: the last count no worse than one
-        // lobe by more than one noise either (see `more_half_vector_lobes_are_never_worse`
-        // for why nested lobes are exempt).
+        // lobe by more than one noise either (nested lobes fail this, see
+        // `nested_half_vector_lobes_step_within_the_noise`).
         assert!(
             !bound_drift || default[3] <= default[0] + noise,
             "{name}: four lobes {} drift above one lobe {} by more than the noise {noise}: {default:?}",
@@ -321,9 +310,9 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder, bound_drift: boo
     }
 }
 
-/// Issue 10 item 1 with [`bake_sg::LobeOrder::Additive`] (each further lobe fitted alone to
-/// what the earlier ones leave, which stay put), through its default frame (`ShadeOptions::ADDITIVE_HALF_VECTOR` from two lobes):
-/// each added lobe, up to four, no worse than one fewer within the reference's noise, on
+/// The default half-vector lobes ([`bake_sg::LobeSetting::HALF_VECTOR_GGX`], additive: each
+/// further lobe fitted alone to what the earlier ones leave, which stay put), through their
+/// default frame (`ShadeOptions::ADDITIVE_HALF_VECTOR` from two lobes): each added lobe, up to four, no worse than one fewer within the reference's noise, on
 /// both small scenes. Measured 2026-12-05: sphere 0.0750, 0.0753, 0.0734, 0.0733 (noise
 /// 0.0368; nested: up to 0.1249), shadowed highlight 0.2102, 0.2179, 0.2198, 0.2204 (noise
 /// 0.0363; nested: 0.2143, 0.2239, 0.2516): after the second lobe flat, where nested lobes
@@ -333,8 +322,10 @@ fn half_vector_lobes_are_never_worse(order: bake_sg::LobeOrder, bound_drift: boo
 /// Also asserted: four lobes no worse than one by more than the noise (measured 2026-12-07 as
 /// above: 0.0733 and 0.2204 against 0.0750 and 0.2102).
 #[test]
-fn additive_half_vector_lobes_are_never_worse() {
-    half_vector_lobes_are_never_worse(bake_sg::LobeOrder::Additive, true);
+fn default_half_vector_lobes_are_never_worse() {
+    let default = bake_sg::LobeSetting::HALF_VECTOR_GGX;
+    assert_eq!(default.order, bake_sg::LobeOrder::Additive);
+    half_vector_lobes_are_never_worse(default.order, true);
 }
 
 /// Issue 10 item 3: one lobe of the GGX-shaped kernel (`--lobe-kernel ggx`,
