@@ -8,7 +8,7 @@ use relight_render::tonemap::ToneMap;
 use relight_scene::accel::Backend;
 use relight_scene::camera::Camera;
 use relight_scene::scene::Environment;
-use relight_scene::scene_file::{self, parse_layout, SceneDesc};
+use relight_scene::scene_file::{self, model, parse_layout, EnvDesc, SceneDesc};
 use relight_sphere::sh::Window;
 use std::path::{Path, PathBuf};
 
@@ -117,21 +117,32 @@ pub fn orders(s: &str) -> Result<Vec<usize>> {
     Ok(out)
 }
 
-/// How scene files and the models they name are read.
+/// How scene files, model files and the models they name are read.
 #[derive(clap::Args, Clone, Debug)]
 pub struct SceneArgs {
-    /// Let references inside a model (glTF buffer URIs, OBJ mtllib) lead outside the model's
-    /// folder (absolute paths, `..`, symlinks out of it): refused by default.
+    /// Let references inside a model (glTF buffer and image URIs, OBJ mtllib) lead outside
+    /// the model's folder (absolute paths, `..`, symlinks out of it): refused by default.
     #[arg(long)]
     pub allow_outside_paths: bool,
     /// Most triangles a mesh file, and the whole scene, may have (counted before expanding
     /// glTF instancing or generating shapes).
     #[arg(long, default_value_t = relight_scene::io::files::DEFAULT_MAX_TRIANGLES)]
     pub max_triangles: usize,
+    /// The light: an environment map (.hdr / .exr, layout detected from the aspect ratio)
+    /// or `sky` (the procedural sun and sky). Default for a model file: the sky; for a scene
+    /// description: its own environment, which this replaces.
+    #[arg(long, value_name = "ENV.hdr|ENV.exr|sky")]
+    pub env: Option<PathBuf>,
+    /// Add a grey ground plane under a model file (8 bounding radii on a side, touching the
+    /// model's lowest point).
+    #[arg(long)]
+    pub ground: bool,
 }
 
 impl SceneArgs {
-    /// Read and build the scene at `path`.
+    /// Read and build the scene at `path`: a scene description (JSON), or a model file
+    /// (`.glb`, `.gltf`, `.obj`, `.ply`) made into a scene by
+    /// [`SceneDesc::for_model`]'s rule, which is printed.
     pub fn load(&self, path: &Path) -> Result<(SceneDesc, relight_scene::scene::Scene)> {
         let opts = relight_scene::io::LoadOptions {
             paths: relight_scene::io::PathPolicy {
@@ -139,10 +150,58 @@ impl SceneArgs {
             },
             max_triangles: self.max_triangles,
         };
-        let desc = SceneDesc::read(path)?;
+        let env = self.env.as_deref().map(env_desc).transpose()?;
+        let desc = if model::is_model(path) {
+            let (desc, why) = SceneDesc::for_model(path, env, self.ground, &opts)?;
+            let c = &desc.camera;
+            eprintln!(
+                "model {}: camera {} ({}x{}); light: {}{}",
+                path.display(),
+                why.camera,
+                c.width,
+                c.height,
+                why.environment,
+                if self.env.is_none() {
+                    " (--env chooses an .hdr/.exr)"
+                } else {
+                    ""
+                },
+            );
+            desc
+        } else {
+            ensure!(
+                !self.ground,
+                "--ground adds a plane under a model file (.glb, .gltf, .obj, .ply); {} is a scene description: add a \"plane\" shape to it",
+                path.display()
+            );
+            let mut desc = SceneDesc::read(path)?;
+            if let Some(env) = env {
+                desc.environment = env;
+            }
+            desc
+        };
         let scene = desc.build_with(path, &opts)?;
         Ok((desc, scene))
     }
+}
+
+/// `--env`'s environment: `sky` is [`model::default_sky`], anything else a map file
+/// (absolute when it exists, so a bundle finds it from any folder).
+fn env_desc(p: &Path) -> Result<EnvDesc> {
+    if p == Path::new("sky") {
+        return Ok(model::default_sky());
+    }
+    ensure!(
+        p.is_file(),
+        "--env {}: no such file (an .hdr or .exr environment map, or `sky`)",
+        p.display()
+    );
+    Ok(EnvDesc::File {
+        path: p.canonicalize().unwrap_or_else(|_| p.to_path_buf()),
+        layout: None,
+        scale: None,
+        rotate_y_deg: None,
+    })
 }
 
 /// Options that choose an environment map and how it is placed.

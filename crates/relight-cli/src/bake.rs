@@ -20,7 +20,8 @@ use std::path::{Path, PathBuf};
 /// Arguments of `relight bake`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene description (JSON; see crates/relight-scene/src/scene_file.rs).
+    /// Scene description (JSON; see crates/relight-scene/src/scene_file.rs) or a model file
+    /// (.glb, .gltf, .obj, .ply: see --env and --ground).
     pub scene: PathBuf,
     /// Output bundle (.relight).
     #[arg(short, long)]

@@ -13,6 +13,8 @@ mod eval;
 mod info;
 mod reference;
 mod render;
+#[cfg(feature = "view")]
+mod view;
 
 use anyhow::{ensure, Result};
 use args::Out;
@@ -39,7 +41,7 @@ enum Cmd {
     /// Run the built-in demo (no downloads): every method baked, relit and compared with the
     /// path tracer; writes a contact sheet and an HTML report.
     Demo(DemoArgs),
-    /// Bake a scene description (JSON) into a bundle.
+    /// Bake a scene description (JSON) or a model file (glTF, OBJ, PLY) into a bundle.
     Bake(bake::Args),
     /// Merge the part bundles of a sharded bake (`bake --shard I/N`) into one bundle.
     Merge(bake::MergeArgs),
@@ -209,7 +211,13 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
         }
         Cmd::HelpMarkdown => println!("{}", relight_clidoc::markdown(Cli::command(), REGENERATE)),
         #[cfg(feature = "view")]
-        Cmd::View(a) => relight_view::cli::run_cli(a)?,
+        Cmd::View(mut a) => {
+            a.bundle = view::bundle_for(&a.bundle, a.env.as_deref(), &out)?;
+            if a.env.as_deref() == Some(std::path::Path::new("sky")) {
+                a.env = None; // baked into the bundle: the viewer starts with it
+            }
+            relight_view::cli::run_cli(a)?
+        }
         #[cfg(not(feature = "view"))]
         Cmd::View { .. } => anyhow::bail!("view: this relight was built without the viewer; rebuild it with `cargo build --release --features view` (it then needs a display and a Vulkan driver: on Debian `apt-get install mesa-vulkan-drivers libvulkan1`)"),
     }

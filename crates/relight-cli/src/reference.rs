@@ -14,7 +14,7 @@ const MAX_SPP: u32 = 1 << 20;
 /// Arguments of `relight reference`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene description (JSON).
+    /// Scene description (JSON) or a model file (.glb, .gltf, .obj, .ply).
     pub scene: PathBuf,
     /// Output images (.exr, .hdr, .png); repeat for several.
     #[arg(short, long, required = true)]
@@ -86,7 +86,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
 /// Arguments of `relight export-mitsuba`.
 #[derive(clap::Args)]
 pub struct ExportArgs {
-    /// Scene description (JSON).
+    /// Scene description (JSON) or a model file (.glb, .gltf, .obj, .ply).
     pub scene: PathBuf,
     /// Output folder (PLY meshes, EXR environment, scene.json for tools/mitsuba_reference.py).
     #[arg(short, long)]

@@ -161,9 +161,39 @@ impl CameraFrame {
     }
 }
 
+/// Horizontal field of view of a camera framed automatically ([`Camera::framing`]), degrees.
+pub const FRAMING_FOV_DEG: f32 = 40.0;
+/// Elevation of a framed camera above the bounds' centre, degrees.
+pub const FRAMING_ELEVATION_DEG: f32 = 20.0;
+/// Image size of a framed camera (4:3).
+pub const FRAMING_SIZE: (u32, u32) = (640, 480);
+
+impl Camera {
+    /// The camera relight gives a model without one of its own (the same rule for `bake`,
+    /// `reference` and `view`, so their pictures agree): it looks at the centre `c` of the
+    /// axis-aligned bounds `[min, max]` from the front (+Z, glTF's and OBJ's usual facing),
+    /// [`FRAMING_ELEVATION_DEG`] above it, with +Y up, a [`FRAMING_FOV_DEG`] horizontal field
+    /// of view at [`FRAMING_SIZE`] pixels, and far enough that the bounding sphere (radius
+    /// `r`, half the diagonal) fits the narrower (vertical) field of view with 5 % to spare:
+    /// distance `1.05 r / sin(fov_y / 2)`.
+    pub fn framing(min: Vec3, max: Vec3) -> Camera {
+        debug_assert!(min.is_finite() && max.is_finite() && min.cmple(max).all());
+        let c = 0.5 * (min + max);
+        let r = (0.5 * (max - min).length()).max(1e-6);
+        let (w, h) = FRAMING_SIZE;
+        let tan_x = (FRAMING_FOV_DEG.to_radians() * 0.5).tan();
+        let half_y = (tan_x * h as f32 / w as f32).atan();
+        let dist = 1.05 * r / half_y.sin();
+        let e = FRAMING_ELEVATION_DEG.to_radians();
+        let dir = Vec3::new(0.0, e.sin(), e.cos());
+        Camera::look_at((c + dist * dir).into(), c.into(), FRAMING_FOV_DEG, w, h)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f32::consts::PI;
 
     fn cam() -> Camera {
         Camera::look_at([0.3, 1.0, 4.0], [0.0, 0.2, 0.0], 40.0, 64, 48)
@@ -183,6 +213,36 @@ mod tests {
         // The top-left pixel looks up-left.
         let d = f.dir_at(0.5, 0.5);
         assert!(d.x < 0.0 && d.y > 0.0);
+    }
+
+    /// The framed camera sees the whole bounding sphere, not much more: every point of the
+    /// sphere (sampled densely) projects inside the image, the centre onto the image centre,
+    /// and the sphere spans at least 80 % of the image height.
+    #[test]
+    fn framing_fits_the_bounding_sphere() {
+        for (min, max) in [
+            (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 2.0, 1.0)),
+            (Vec3::new(10.0, -3.0, 5.0), Vec3::new(10.5, 7.0, 5.2)),
+            (Vec3::splat(-1e-3), Vec3::splat(1e-3)),
+        ] {
+            let cam = Camera::framing(min, max);
+            cam.validate().unwrap();
+            let f = cam.frame();
+            let (c, r) = (0.5 * (min + max), 0.5 * (max - min).length());
+            let (cx, cy, _) = f.project(c).unwrap();
+            assert!((cx - 320.0).abs() < 1e-2 && (cy - 240.0).abs() < 1e-2);
+            let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+            for i in 0..64 {
+                for j in 0..32 {
+                    let (t, p) = (PI * (j as f32 + 0.5) / 32.0, 2.0 * PI * i as f32 / 64.0);
+                    let d = Vec3::new(t.sin() * p.cos(), t.cos(), t.sin() * p.sin());
+                    let (x, y, _) = f.project(c + r * d).unwrap();
+                    assert!((0.0..=640.0).contains(&x) && (0.0..=480.0).contains(&y));
+                    (lo, hi) = (lo.min(y), hi.max(y));
+                }
+            }
+            assert!(hi - lo >= 0.8 * 480.0, "{min} {max}: spans {lo}..{hi}");
+        }
     }
 
     #[test]

@@ -816,5 +816,7 @@ pub fn build_env(d: &EnvDesc) -> Result<Environment, SceneError> {
     })
 }
 
+pub mod model;
+
 #[cfg(test)]
 mod tests;

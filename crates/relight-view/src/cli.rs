@@ -16,7 +16,10 @@ use std::path::PathBuf;
      run only, an error shown in the window (each is also printed on stdout)."
 ))]
 pub struct Args {
-    /// The baked bundle (any method; the GPU renders sh, hybrid, sg and cuts).
+    /// The baked bundle (any method; the GPU renders sh, hybrid, sg and cuts), or a model
+    /// file (.glb, .gltf, .obj, .ply) or scene description (.json), baked first as `relight
+    /// bake` does (method from the materials, --env the light) into a cache that the next view
+    /// of the same file reuses.
     pub bundle: PathBuf,
     /// Start with this environment map (.hdr / .exr) instead of the bundle's.
     #[arg(long)]
