@@ -25,7 +25,7 @@
 //!
 //! # Textured glTF assets
 //!
-//! [`gltf_assets`] builds, once per test run, textured glTF files made by third-party npm tools
+//! [`gltf_assets()`] builds, once per test run, textured glTF files made by third-party npm tools
 //! (`obj2gltf`, `@gltf-transform`) from the shared `spot.obj` and validated by the Khronos
 //! `gltf-validator`, and returns their paths; [`validate_gltf`] runs the validator on any file.
 //! Both [`skip`] (with the reason) without `node`, the tools `scripts/setup.sh` installs, or
