@@ -208,3 +208,47 @@ fn the_validator_refuses_corrupted_files() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The 8-bit RGB texels of a PNG the builder wrote.
+fn read_png(path: &Path) -> Vec<[u8; 3]> {
+    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size().unwrap()];
+    let info = r.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    buf[..info.buffer_size()]
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect()
+}
+
+#[test]
+fn the_generated_maps_vary_as_documented() {
+    let Some(assets) = gltf_assets() else { return };
+    // Metallic-roughness: roughness (G) in stripes of 0.2 and 0.9, metallic (B) of 0 and 1.
+    let mr = read_png(&assets.dir.join("spot_external_metallic_roughness.png"));
+    assert_eq!(mr.len(), 64 * 64);
+    for (i, &[r, g, b]) in mr.iter().enumerate() {
+        let x = i % 64;
+        assert_eq!(r, 255, "texel {i}");
+        assert_eq!(g, if (8 * x / 64) % 2 == 0 { 51 } else { 230 }, "texel {i}");
+        assert_eq!(b, if (4 * x / 64) % 2 == 0 { 0 } else { 255 }, "texel {i}");
+    }
+    // Normal map: unit tangent-space normals facing out (+z), tilted by the bumps. 8-bit
+    // encoding rounds each component by at most 1/255, so |n| is 1 within ~1.5 %.
+    let nm = read_png(&assets.dir.join("spot_external_normal.png"));
+    assert_eq!(nm.len(), 64 * 64);
+    let decode = |t: [u8; 3]| glam::Vec3::from_array(t.map(|c| f32::from(c) / 255.0 * 2.0 - 1.0));
+    let mut max_tilt = 0.0f32;
+    for &t in &nm {
+        let n = decode(t);
+        assert!((n.length() - 1.0).abs() < 0.015, "{n}");
+        assert!(n.z > 0.5, "{n}");
+        max_tilt = max_tilt.max(n.z.acos());
+    }
+    // Slope amplitude a 2 pi k = 0.02 x 2 pi x 8 ~ 1.0: the steepest texels tilt by ~40-45 degrees.
+    assert!(
+        max_tilt > 0.6,
+        "the bumps tilt the normals by {max_tilt} rad at most"
+    );
+}
