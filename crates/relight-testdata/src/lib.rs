@@ -22,6 +22,18 @@
 //! of [`PLATFORM_PRECONDITIONS`], in a test or in `RELIGHT_ALLOW_SKIP`, is refused, so a typo
 //! cannot allow a skip. [`skip_verdict`] is the whole policy as a function of the two
 //! variables' values.
+//!
+//! # Textured glTF assets
+//!
+//! [`gltf_assets()`] builds, once per test run, textured glTF files made by third-party npm tools
+//! (`obj2gltf`, `@gltf-transform`) from the shared `spot.obj` and validated by the Khronos
+//! `gltf-validator`, and returns their paths; [`validate_gltf`] runs the validator on any file.
+//! Both [`skip`] (with the reason) without `node`, the tools `scripts/setup.sh` installs, or
+//! the shared data. See [`mod@gltf_assets`] for the assets and the cache.
+
+pub mod gltf_assets;
+
+pub use gltf_assets::{gltf_assets, validate_gltf, GltfAssets, ValidatorVerdict};
 
 use std::path::PathBuf;
 
