@@ -21,10 +21,18 @@ MIN_ALPHA = 1e-3
 
 
 def _value1(p, si, active):
-    """Evaluate a float parameter: a number or a texture's first channel."""
-    if isinstance(p, (int, float)):
-        return mi.Float(float(p))
-    return p.eval_1(si, active)
+    """Evaluate a float parameter: a texture's first channel, or a number."""
+    if hasattr(p, "eval_1"):
+        return p.eval_1(si, active)
+    return mi.Float(float(p))
+
+
+def _colour(p, si, active):
+    """Evaluate a colour parameter: a texture, or a constant (Mitsuba hands an `rgb` entry to
+    a Python plugin as a colour)."""
+    if hasattr(p, "eval"):
+        return p.eval(si, active)
+    return mi.Color3f(p)
 
 
 class GltfBSDF(mi.BSDF):
@@ -41,7 +49,7 @@ class GltfBSDF(mi.BSDF):
         self.m_flags = glossy | diffuse
 
     def _params(self, si, active):
-        base = self.base_color.eval(si, active)
+        base = _colour(self.base_color, si, active)
         metallic = _value1(self.metallic, si, active)
         r = _value1(self.roughness, si, active)
         alpha = dr.maximum(r * r, MIN_ALPHA)

@@ -303,3 +303,59 @@ fn normal_and_diffuse_maps_on_a_plastic_quad_match_mitsuba() {
         &controls,
     );
 }
+
+/// The glTF metallic-roughness BRDF (Appendix B) against Mitsuba's `gltf_pbr` plugin
+/// (`tools/mitsuba_gltf_bsdf.py`, an independent Dr.Jit implementation), with two metallic
+/// values, a base-colour map and a metallic-roughness map: a dielectric ground (metallic 0,
+/// base colour map, green = roughness ramp) and a metallic sphere (metallic 1, checker of
+/// roughness 0.35 / 0.7 and metallic 1 / 0.5 through green and blue).
+#[test]
+fn gltf_base_colour_and_metallic_roughness_maps_match_mitsuba() {
+    let ground = Material::Gltf {
+        base_color: Vec3::splat(0.9),
+        metallic: 0.0,
+        roughness: 0.9,
+    };
+    let sphere = Material::Gltf {
+        base_color: Vec3::new(0.95, 0.8, 0.5),
+        metallic: 1.0,
+        roughness: 1.0,
+    };
+    let ramp = texture("mr_ramp", 8, 1, |x, _| {
+        Vec3::new(0.0, 0.4 + 0.6 * (x as f32 + 0.5) / 8.0, 0.0)
+    });
+    let checker = texture("mr_checker", 4, 4, |x, y| {
+        if (x + y) % 2 == 0 {
+            Vec3::new(0.0, 0.35, 1.0)
+        } else {
+            Vec3::new(0.0, 0.7, 0.5)
+        }
+    });
+    let ground_maps = MaterialMaps {
+        diffuse: Some(colour_map()),
+        metallic_roughness: Some(ramp),
+        ..Default::default()
+    };
+    let sphere_maps = MaterialMaps {
+        metallic_roughness: Some(checker),
+        ..Default::default()
+    };
+    let sc = scene(
+        [ground, sphere],
+        [Some(ground_maps), Some(sphere_maps)],
+        true,
+    );
+    let controls = [
+        ("maps ignored", unmapped(&sc)),
+        (
+            "sphere's metallic-roughness map ignored",
+            remapped(&sc, 1, MaterialMaps::default()),
+        ),
+    ];
+    check(
+        "base colour + metallic-roughness maps on glTF materials",
+        &sc,
+        256,
+        &controls,
+    );
+}
