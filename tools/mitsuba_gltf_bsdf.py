@@ -114,7 +114,8 @@ class GltfBSDF(mi.BSDF):
         bs.pdf = self._pdf(si, wo, active)
         value, ok = self._eval(si, wo, active)
         ok = ok & (bs.pdf > 0)
-        return bs, dr.select(ok, value / bs.pdf, 0.0)
+        # (Guarded division: scalar variants evaluate both branches in Python floats.)
+        return bs, dr.select(ok, value / dr.maximum(bs.pdf, 1e-30), 0.0)
 
     def eval(self, ctx, si, wo, active=True):
         return self._eval(si, wo, active)[0]
