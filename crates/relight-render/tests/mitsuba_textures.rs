@@ -1,6 +1,7 @@
-//! Textured materials (diffuse, specular, roughness and normal maps) in relight's path tracer
-//! against Mitsuba 3 through the export's `bitmap` textures (`relight_render::mitsuba`,
-//! "Texture and normal maps").
+//! Textured materials (diffuse, specular, roughness, metallic-roughness and normal maps) in
+//! relight's path tracer against Mitsuba 3 through the export's `bitmap` textures
+//! (`relight_render::mitsuba`, "Texture and normal maps"); glTF materials against the
+//! `gltf_pbr` plugin (`tools/mitsuba_gltf_bsdf.py`).
 //!
 //! Scenes: a ground square (mirrored UVs) and a UV sphere under a smooth one-lobe environment,
 //! direct light only (max_depth 2), 48 x 48 pixels; the procedural textures are written to a
@@ -358,4 +359,34 @@ fn gltf_base_colour_and_metallic_roughness_maps_match_mitsuba() {
         256,
         &controls,
     );
+}
+
+/// A normal map with `normal_scale` (glTF's `normalTexture.scale`) on a glTF quad: the export
+/// writes the scaled normals (`mitsuba/maps.rs`); a control rendering the map at scale 1 must
+/// fail.
+#[test]
+fn scaled_normal_map_on_a_gltf_quad_matches_mitsuba() {
+    let gltf = Material::Gltf {
+        base_color: Vec3::new(0.7, 0.55, 0.4),
+        metallic: 0.3,
+        roughness: 0.5,
+    };
+    let maps = MaterialMaps {
+        normal: Some(ripple_map()),
+        normal_scale: 2.0,
+        ..Default::default()
+    };
+    let sc = scene([gltf, gltf], [Some(maps.clone()), None], false);
+    let controls = [(
+        "normal_scale ignored",
+        remapped(
+            &sc,
+            0,
+            MaterialMaps {
+                normal_scale: 1.0,
+                ..maps
+            },
+        ),
+    )];
+    check("scaled normal map on a glTF quad", &sc, 256, &controls);
 }
