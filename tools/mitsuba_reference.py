@@ -25,6 +25,13 @@ format). The Mitsuba scene built from it:
     bilinear, repeat); with `"channel": c` only channel `c` is kept (a one-channel bitmap, for
     a scalar such as `alpha`). The PLY's `v` and the EXR's rows are already in Mitsuba's
     placement (`relight_render::mitsuba`, "Texture and normal maps");
+  * a `gltf` BSDF (`base_color`, `metallic`, `roughness`: the glTF 2.0 metallic-roughness
+    BRDF, Appendix B) is, with `--gltf-as plugin` (the default), the `gltf_pbr` plugin of
+    `mitsuba_gltf_bsdf.py` (beside this script): Appendix B in Dr.Jit. `--gltf-as blend` and
+    `--gltf-as principled` use Mitsuba's own BSDFs instead, which differ from Appendix B (for
+    comparisons): a `blendbsdf` weighted by `metallic` of `roughplastic` (diffuse = base colour,
+    `int_ior = 1.5`) and `roughconductor` (`specular_reflectance` = base colour), both with
+    `alpha = roughness^2`; or `principled` (`specular = 0.5`, i.e. `eta = 1.5`);
   * a `normalmap` BSDF is loaded with `use_shadowing_function = False` and
     `flip_invalid_normals = False` (both on by default in Mitsuba 3.9, neither in relight;
     Mitsuba versions without these properties refuse the scene rather than render another);
@@ -40,6 +47,9 @@ import json
 import os
 import sys
 import time
+
+# How a `gltf` BSDF is rendered: "plugin" (Appendix B), "blend" or "principled" (module docs).
+GLTF_AS = "plugin"
 
 
 def pick_variant(requested):
@@ -128,7 +138,61 @@ def bsdf_dict(b, base_dir="."):
             "diffuse_reflectance": colour(b["diffuse_reflectance"], base_dir),
             "specular_reflectance": colour(b["specular_reflectance"], base_dir),
         }
+    if t == "gltf":
+        return gltf_dict(b, base_dir)
     raise ValueError(f"unsupported bsdf type {t!r}")
+
+
+def gltf_dict(b, base_dir):
+    """A `gltf` BSDF entry as `GLTF_AS` says (module docs)."""
+    base = colour(b["base_color"], base_dir)
+    metallic = scalar(b["metallic"], base_dir)
+    roughness = b["roughness"]
+    if GLTF_AS == "plugin":
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import mitsuba_gltf_bsdf  # noqa: F401 - registers `gltf_pbr`
+
+        return {
+            "type": "gltf_pbr",
+            "base_color": base,
+            "metallic": metallic,
+            "roughness": scalar(roughness, base_dir),
+        }
+    if isinstance(roughness, dict):
+        raise ValueError(f"--gltf-as {GLTF_AS}: a roughness texture needs the plugin")
+    alpha = max(float(roughness) ** 2, 1e-3)
+    if GLTF_AS == "principled":
+        return {
+            "type": "principled",
+            "base_color": base,
+            "metallic": metallic,
+            "roughness": float(roughness),
+            "specular": 0.5,
+        }
+    if GLTF_AS == "blend":
+        return {
+            "type": "blendbsdf",
+            "weight": metallic,
+            "bsdf_0": {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": alpha,
+                "sample_visible": True,
+                "nonlinear": False,
+                "int_ior": 1.5,
+                "ext_ior": 1.0,
+                "diffuse_reflectance": base,
+            },
+            "bsdf_1": {
+                "type": "roughconductor",
+                "distribution": "ggx",
+                "alpha": alpha,
+                "sample_visible": True,
+                "material": "none",
+                "specular_reflectance": colour(b["base_color"], base_dir),
+            },
+        }
+    raise ValueError(f"unknown --gltf-as {GLTF_AS!r}")
 
 
 def scene_dict(doc, base_dir, spp=None):
@@ -200,7 +264,12 @@ def main(argv=None):
     p.add_argument("--spp", type=int, default=None, help="override the file's spp")
     p.add_argument("--seed", type=int, default=0, help="sampler seed")
     p.add_argument("--seeds", default=None, help="comma-separated seeds, one image each")
+    p.add_argument(
+        "--gltf-as", default="plugin", help="plugin | blend | principled (module docs)"
+    )
     a = p.parse_args(argv)
+    global GLTF_AS
+    GLTF_AS = a.gltf_as
 
     with open(a.scene_json) as f:
         doc = json.load(f)

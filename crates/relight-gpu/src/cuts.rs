@@ -11,7 +11,7 @@
 //! the GGX plastic.
 
 use crate::layout::{
-    GpuCutsMaterial, GpuCutsParams, GpuLightNode, CUTS_GGX_CONDUCTOR, CUTS_GGX_PLASTIC,
+    GpuCutsMaterial, GpuCutsParams, GpuLightNode, CUTS_GGX_CONDUCTOR, CUTS_GGX_PLASTIC, CUTS_GLTF,
     CUTS_LAMBERT,
 };
 use crate::pipeline::{self, bind, v4, MeshBuffers, Raster, B, STORAGE, UNIFORM};
@@ -84,9 +84,18 @@ fn gpu_material(
             g.internal_reflectance = t.internal_reflectance;
             tables.extend_from_slice(&t.external_transmittance);
         }
+        Material::Gltf {
+            base_color,
+            metallic,
+            roughness,
+        } => {
+            g.kind = CUTS_GLTF;
+            g.color = v4(base_color, metallic);
+            g.alpha = relight_scene::material::gltf_pbr::alpha(roughness);
+        }
         ref other => {
             return Err(GpuError::Unsupported(format!(
-                "--method cuts --gpu shades Lambert, GGX conductor and GGX plastic materials; {other:?} is not supported on the GPU yet (render it without --gpu)"
+                "--method cuts --gpu shades Lambert, GGX conductor, GGX plastic and glTF materials; {other:?} is not supported on the GPU yet (render it without --gpu)"
             )))
         }
     }

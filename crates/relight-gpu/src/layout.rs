@@ -258,18 +258,21 @@ pub const CUTS_LAMBERT: u32 = 0;
 pub const CUTS_GGX_CONDUCTOR: u32 = 1;
 /// The GGX plastic.
 pub const CUTS_GGX_PLASTIC: u32 = 2;
+/// The glTF metallic-roughness BRDF (`relight_scene::material::gltf_pbr`).
+pub const CUTS_GLTF: u32 = 3;
 
 /// A material of the `cuts` frame. WGSL twin: `CutsMaterial` in `shaders/cuts.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuCutsMaterial {
-    /// Lambert's albedo, the conductor's or the plastic's specular reflectance (w unused).
+    /// Lambert's albedo, the conductor's or the plastic's specular reflectance (w unused);
+    /// glTF's base colour, with `metallic` in w.
     pub color: [f32; 4],
     /// The plastic's diffuse reflectance (w unused).
     pub diffuse: [f32; 4],
-    /// [`CUTS_LAMBERT`], [`CUTS_GGX_CONDUCTOR`] or [`CUTS_GGX_PLASTIC`].
+    /// [`CUTS_LAMBERT`], [`CUTS_GGX_CONDUCTOR`], [`CUTS_GGX_PLASTIC`] or [`CUTS_GLTF`].
     pub kind: u32,
-    /// GGX roughness.
+    /// GGX roughness (glTF: `alpha = roughness^2`, [`relight_scene::material::gltf_pbr::alpha`]).
     pub alpha: f32,
     /// 1: averaged over each merged cluster's spread (the CPU's `spreads`: spread on and
     /// the material not purely diffuse).

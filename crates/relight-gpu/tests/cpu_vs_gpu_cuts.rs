@@ -77,6 +77,8 @@ fn desc(material: &str) -> SceneDesc {
 const LAMBERT: &str = r#"{"type": "lambert", "albedo": [0.8, 0.3, 0.2]}"#;
 const CONDUCTOR: &str = r#"{"type": "ggx_conductor", "specular": [0.9, 0.7, 0.4], "alpha": 0.2}"#;
 const PLASTIC: &str = r#"{"type": "ggx_plastic", "diffuse": [0.2, 0.4, 0.7], "specular": [1, 1, 1], "alpha": 0.15, "ior": 1.5}"#;
+const GLTF: &str =
+    r#"{"type": "gltf", "base_color": [0.9, 0.5, 0.2], "metallic": 0.4, "roughness": 0.45}"#;
 
 /// A cuts bake of 2048 environment lights (binary visibility, the default).
 fn bake(material: &str) -> (Baked, Scene) {
@@ -242,6 +244,26 @@ fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
 fn cuts_frame_ggx_plastic_matches_the_per_sample_merge() {
     let Some(gpu) = gpu() else { return };
     let (b, scene) = bake(PLASTIC);
+    let s = CutsFrameSettings::default();
+    let c = cpu(&b, &s, &scene);
+    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
+    compare(&c, &g).unwrap();
+    // Negative controls: another rotation's light cut; the spread off.
+    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
+    assert!(compare(&c, &g).is_err());
+    let off = CutsFrameSettings {
+        cluster_spread: false,
+        ..s
+    };
+    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
+    assert!(compare(&c, &g).is_err());
+}
+
+/// The glTF BRDF (Appendix B, `gltf_pbr`) ported to WGSL, against the CPU frame.
+#[test]
+fn cuts_frame_gltf_matches_the_per_sample_merge() {
+    let Some(gpu) = gpu() else { return };
+    let (b, scene) = bake(GLTF);
     let s = CutsFrameSettings::default();
     let c = cpu(&b, &s, &scene);
     let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);

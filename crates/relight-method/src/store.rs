@@ -184,13 +184,20 @@ impl BakedScene {
                     );
                 }
             }
+            if maps.normal_scale != 1.0 {
+                b.insert(
+                    &format!("map_{i}_{NORMAL_SCALE}"),
+                    Tensor::from_f32(vec![1], &[maps.normal_scale]),
+                );
+            }
         }
         Ok(())
     }
 
     /// The maps of the tensors `map_<material>_<kind>` (`[H, W, 3]` F32), each checked as a
-    /// texture is when read from a file; a map of a material that does not exist, of an
-    /// unknown kind, or on a mesh without texture coordinates is refused by name.
+    /// texture is when read from a file, and `map_<material>_normal_scale` (`[1]` F32, finite;
+    /// 1 when absent); a map of a material that does not exist, of an unknown kind, or on a
+    /// mesh without texture coordinates is refused by name.
     fn load_maps(
         r: &TensorReader,
         mesh: &TriMesh,
@@ -198,6 +205,17 @@ impl BakedScene {
     ) -> Result<SceneMaps, MethodError> {
         let mut per_material: Vec<Option<MaterialMaps>> = vec![None; materials];
         for name in r.b.tensors.keys().filter(|k| k.starts_with("map_")) {
+            let scale_of = name["map_".len()..]
+                .strip_suffix(&format!("_{NORMAL_SCALE}"))
+                .and_then(|i| i.parse::<usize>().ok())
+                .filter(|&i| i < materials);
+            if let Some(i) = scale_of {
+                let s = r.f32s(name, &[1])?[0];
+                per_material[i]
+                    .get_or_insert_with(MaterialMaps::default)
+                    .normal_scale = s;
+                continue;
+            }
             let parsed = name["map_".len()..].split_once('_').and_then(|(i, kind)| {
                 let i: usize = i.parse().ok()?;
                 let k = MAP_KINDS.iter().position(|&m| m == kind)?;
@@ -252,6 +270,9 @@ impl BakedScene {
         })
     }
 }
+
+/// The kind name of the tensor holding a material's normal-map scale (`map_<m>_normal_scale`).
+const NORMAL_SCALE: &str = "normal_scale";
 
 /// JSON text of a value to record, with a typed error.
 pub(crate) fn json<S: Serialize>(v: &S) -> Result<String, MethodError> {

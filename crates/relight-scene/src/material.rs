@@ -25,7 +25,14 @@
 //!   along the world direction `tangent` projected on the tangent plane
 //!   ([`Material::shading_frame`]); sampled by mixing a cosine lobe and Walter 2005's
 //!   half-vector lobe, weighted as Blinn-Phong's.
+//! * `Gltf`: the glTF 2.0 metallic-roughness BRDF, Appendix B of the glTF specification
+//!   ([`gltf_pbr`] carries the equations): a GGX specular lobe with height-correlated Smith
+//!   visibility and Schlick's Fresnel (`F0 = 0.04` for the dielectric, `base_color` for the
+//!   metal) over a Lambert base weighted by `1 - F`, blended by `metallic`; sampled by mixing a
+//!   cosine lobe and visible-normal GGX sampling. Mitsuba 3 has no such BSDF: relight's
+//!   `tools/mitsuba_gltf_bsdf.py` implements it as a Mitsuba plugin for the reference.
 
+pub mod gltf_pbr;
 pub mod maps;
 pub mod microfacet;
 pub mod ward;
@@ -90,6 +97,17 @@ pub enum Material {
         /// default `+Y`, brushed along the up axis).
         #[serde(default = "default_ward_tangent")]
         tangent: Vec3,
+    },
+    /// The glTF 2.0 metallic-roughness BRDF (glTF specification, Appendix B; [`gltf_pbr`]):
+    /// `mix(dielectric, metal, metallic)` with a GGX lobe of `alpha = roughness^2`.
+    Gltf {
+        /// `baseColorFactor` (linear RGB, in [0, 1]): the diffuse colour of the dielectric
+        /// and the reflectance at normal incidence of the metal.
+        base_color: Vec3,
+        /// `metallicFactor` in [0, 1].
+        metallic: f32,
+        /// `roughnessFactor` in [0, 1] (perceptual: `alpha = roughness^2`).
+        roughness: f32,
     },
 }
 
@@ -288,6 +306,11 @@ impl Material {
                 specular * ward::eval(wi, wo, alpha_x, alpha_y),
                 diffuse * (FRAC_1_PI * co),
             ],
+            Material::Gltf {
+                base_color,
+                metallic,
+                roughness,
+            } => gltf_pbr::lobes(wi, wo, base_color, metallic, gltf_pbr::alpha(roughness)),
         }
     }
 
@@ -326,6 +349,15 @@ impl Material {
             } => {
                 let ps = blinn_specular_probability(diffuse, specular);
                 ps * ward::pdf(wi, wo, alpha_x, alpha_y) + (1.0 - ps) * cosine_hemisphere_pdf(wo)
+            }
+            Material::Gltf {
+                base_color,
+                metallic,
+                roughness,
+            } => {
+                let ps = gltf_pbr::specular_probability(base_color, metallic);
+                ps * gltf_pbr::ggx_pdf(wi, wo, gltf_pbr::alpha(roughness))
+                    + (1.0 - ps) * cosine_hemisphere_pdf(wo)
             }
         }
     }
@@ -396,6 +428,18 @@ impl Material {
                     sample_cosine_hemisphere(u)
                 }
             }
+            Material::Gltf {
+                base_color,
+                metallic,
+                roughness,
+            } => {
+                if u_lobe < gltf_pbr::specular_probability(base_color, metallic) {
+                    let alpha = gltf_pbr::alpha(roughness);
+                    mf::reflect(wi, mf::sample_visible_normal(wi, alpha, u))
+                } else {
+                    sample_cosine_hemisphere(u)
+                }
+            }
         };
         if wo.z <= 0.0 {
             return None;
@@ -415,7 +459,10 @@ impl Material {
     /// Diffuse (view-independent) reflectance, used by the SH bake for interreflections:
     /// Lambert `albedo`, Blinn-Phong `diffuse`, GGX conductor zero, GGX plastic the
     /// cosine-weighted hemispherical average of its diffuse lobe's albedo,
-    /// `diffuse / (1 - Fdr) / eta^2 * tbar^2` with `tbar = 2 ∫ t(mu) mu dmu`.
+    /// `diffuse / (1 - Fdr) / eta^2 * tbar^2` with `tbar = 2 ∫ t(mu) mu dmu`; glTF the same
+    /// average of its diffuse lobe, `(1 - metallic) base_color` times
+    /// [`gltf_pbr::MEAN_DIFFUSE_TRANSMISSION`] (that lobe is not separable in view and light:
+    /// see [`Material::diffuse_factors`]).
     pub fn diffuse_albedo(&self) -> Vec3 {
         match *self {
             Material::Lambert { albedo } => albedo,
@@ -431,6 +478,11 @@ impl Material {
                 diffuse / (1.0 - t.internal_reflectance) / (ior * ior)
                     * (t.mean_transmittance * t.mean_transmittance)
             }
+            Material::Gltf {
+                base_color,
+                metallic,
+                ..
+            } => base_color * ((1.0 - metallic) * gltf_pbr::MEAN_DIFFUSE_TRANSMISSION),
         }
     }
 
@@ -442,6 +494,7 @@ impl Material {
             Material::GgxConductor { .. } => "ggx_conductor",
             Material::GgxPlastic { .. } => "ggx_plastic",
             Material::Ward { .. } => "ward",
+            Material::Gltf { .. } => "gltf",
         }
     }
 
@@ -452,13 +505,15 @@ impl Material {
             Material::BlinnPhong { specular, .. } | Material::Ward { specular, .. } => {
                 specular == Vec3::ZERO
             }
-            Material::GgxConductor { .. } | Material::GgxPlastic { .. } => false,
+            Material::GgxConductor { .. } | Material::GgxPlastic { .. } | Material::Gltf { .. } => {
+                false
+            }
         }
     }
 
     /// Check parameter ranges: reflectances finite in `[0, 1]` (Blinn-Phong: `diffuse +
     /// specular <= 1` per channel), exponent finite and `> 0`, `alpha` in `[1e-4, 2]`, `ior`
-    /// in `(1, 4]`.
+    /// in `(1, 4]`; glTF's `base_color`, `metallic` and `roughness` finite in `[0, 1]`.
     ///
     /// # Errors
     /// The first parameter out of range.
@@ -533,6 +588,19 @@ impl Material {
                 }
                 Ok(())
             }
+            Material::Gltf {
+                base_color,
+                metallic,
+                roughness,
+            } => {
+                refl("base_color", base_color)?;
+                for (name, value) in [("metallic", metallic), ("roughness", roughness)] {
+                    if !(0.0..=1.0).contains(&value) {
+                        return Err(MaterialError::Factor { name, value });
+                    }
+                }
+                Ok(())
+            }
         }
     }
 
@@ -586,6 +654,14 @@ pub enum MaterialError {
     /// A Ward `tangent` is zero or not finite.
     #[error("Ward tangent {0} must be finite and non-zero")]
     Tangent(Vec3),
+    /// A glTF `metallic` or `roughness` factor is outside `[0, 1]` or not finite.
+    #[error("glTF {name} {value} must be finite and in [0, 1]")]
+    Factor {
+        /// The parameter (`metallic`, `roughness`).
+        name: &'static str,
+        /// Its value.
+        value: f32,
+    },
 }
 
 /// The glossy / diffuse split of every BRDF used by view-dependent PRT (Green 2005, thesis
@@ -596,7 +672,9 @@ pub enum MaterialError {
 impl Material {
     /// The glossy (view-dependent) part of [`Material::eval`], cosine included: Blinn-Phong's
     /// specular term, the whole GGX conductor, the GGX plastic's coating (specular) term; zero
-    /// for Lambert. Zero when either direction is below the horizon.
+    /// for Lambert; the **whole** glTF BRDF, whose diffuse lobe depends on the view through
+    /// `1 - F(V.H)` (see [`Material::diffuse_factors`]). Zero when either direction is below
+    /// the horizon.
     pub fn glossy_eval(&self, wi: Vec3, wo: Vec3) -> Vec3 {
         let (ci, co) = (wi.z, wo.z);
         if ci <= 0.0 || co <= 0.0 {
@@ -630,6 +708,7 @@ impl Material {
                 alpha_y,
                 ..
             } => specular * ward::eval(wi, wo, alpha_x, alpha_y),
+            Material::Gltf { .. } => self.eval_with(None, wi, wo),
         }
     }
 
@@ -640,6 +719,11 @@ impl Material {
     /// the interface transmittance and `tbar` its cosine-weighted mean
     /// ([`microfacet::PlasticTables`]): since `diffuse_albedo() = diffuse / ((1 - Fdr) eta^2)
     /// tbar^2`, the light side is `t(cos_o) / ((1 - Fdr) eta^2)` relative to the raw `diffuse`.
+    ///
+    /// For glTF, `(0, 1)`: Appendix B's diffuse lobe `(1 - F(V.H)) base / pi` is not a product
+    /// of a view factor and a light factor, so the whole BRDF is the glossy part
+    /// ([`Material::glossy_eval`]) and the separable diffuse part is zero; its
+    /// [`Material::diffuse_albedo`] still serves the diffuse-only (SH) methods.
     ///
     /// In view-dependent PRT (Green 2005 sec. 3.1) the light side goes into the baked diffuse
     /// SH transfer and the view side is applied with the albedo at render time.
@@ -657,12 +741,14 @@ impl Material {
                     t.transmittance(cos_o) / (tbar * tbar),
                 )
             }
+            Material::Gltf { .. } => (0.0, 1.0),
         }
     }
 
     /// Solid-angle density with which [`Material::sample_glossy`] produces `wo` given `wi`:
     /// the Blinn-Phong half-vector lobe, or the GGX visible-normal reflection (Heitz 2018);
-    /// zero for Lambert, for a Blinn-Phong without specular, or below the horizon.
+    /// for glTF, whose glossy part is the whole BRDF, [`Material::pdf`]; zero for Lambert, for
+    /// a Blinn-Phong without specular, or below the horizon.
     pub fn glossy_pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
@@ -693,12 +779,14 @@ impl Material {
                     ward::pdf(wi, wo, alpha_x, alpha_y)
                 }
             }
+            Material::Gltf { .. } => self.pdf(wi, wo),
         }
     }
 
     /// Importance-sample the glossy part only ([`Material::glossy_eval`]): `weight =
-    /// glossy_eval / glossy_pdf`, `pdf = glossy_pdf`. `None` for materials without a glossy
-    /// part, when `wi` is below the horizon or the sample falls below it. Used to trace the
+    /// glossy_eval / glossy_pdf`, `pdf = glossy_pdf`; for glTF, [`Material::sample`] with the
+    /// lobe chosen by `u.x` (rescaled to drive the lobe's warp). `None` for materials without a
+    /// glossy part, when `wi` is below the horizon or the sample falls below it. Used to trace the
     /// indirect glossy paths of Green 2005 (thesis sec. 2.2.1).
     pub fn sample_glossy(&self, wi: Vec3, u: Vec2) -> Option<BsdfSample> {
         if wi.z <= 0.0 {
@@ -743,6 +831,19 @@ impl Material {
                 let wo = mf::reflect(wi, m);
                 let f = mf::fresnel_dielectric(wi.dot(m), ior);
                 (wo, specular * (f * mf::smith_g1(wo, m, alpha)))
+            }
+            Material::Gltf {
+                base_color,
+                metallic,
+                ..
+            } => {
+                let ps = gltf_pbr::specular_probability(base_color, metallic);
+                let (u, u_lobe) = if u.x < ps {
+                    (Vec2::new((u.x / ps).min(1.0 - f32::EPSILON), u.y), 0.0)
+                } else {
+                    (Vec2::new(((u.x - ps) / (1.0 - ps)).min(1.0), u.y), 1.0)
+                };
+                return self.sample(wi, u, u_lobe);
             }
         };
         if wo.z <= 0.0 {
@@ -868,6 +969,11 @@ mod tests {
                 alpha_x: 0.1,
                 alpha_y: 0.2,
                 tangent: Vec3::X,
+            },
+            Material::Gltf {
+                base_color: v,
+                metallic: 0.5,
+                roughness: 0.5,
             },
         ] {
             let json = serde_json::to_value(m).unwrap();
@@ -1133,6 +1239,17 @@ mod tests {
                 },
             ));
         }
+        // Roughness >= 0.32 (alpha >= 0.1): sharper lobes than the chi-square bins resolve.
+        for (metallic, roughness) in [(0.0f32, 0.35f32), (0.0, 0.8), (0.5, 0.5), (1.0, 0.35)] {
+            v.push((
+                format!("gltf m={metallic} r={roughness}"),
+                Material::Gltf {
+                    base_color: Vec3::new(0.8, 0.5, 0.2),
+                    metallic,
+                    roughness,
+                },
+            ));
+        }
         v
     }
 
@@ -1367,6 +1484,19 @@ mod tests {
                 alpha: 0.5,
             },
         ));
+        // The glTF BRDF on a white base: the furnace for several roughness and metallic values.
+        for metallic in [0.0f32, 0.5, 1.0] {
+            for roughness in [0.0f32, 0.3, 0.7, 1.0] {
+                mats.push((
+                    format!("white gltf m={metallic} r={roughness}"),
+                    Material::Gltf {
+                        base_color: Vec3::ONE,
+                        metallic,
+                        roughness,
+                    },
+                ));
+            }
+        }
         // Max over n of the Blinn specular lobe's albedo (see `blinn_normal_albedo`).
         let blinn_max = (1..400)
             .map(|n| blinn_normal_albedo(n as f64))
@@ -1381,6 +1511,21 @@ mod tests {
             };
             for &t in &[0.0f32, 30.0, 60.0, 85.0] {
                 let (a, se) = albedo(&m, dir(t, 0.0), 200_000, 5);
+                // Appendix B's dielectric is not energy conserving at grazing views: its
+                // diffuse lobe is weighted by 1 - F(V.H) at each light direction (about 0.96
+                // away from the mirror direction) while the specular lobe near the mirror
+                // direction reflects F(V.H) ~ F(cos_i), which tends to 1. Measured: a smooth
+                // white dielectric reflects 1.03 at 60 degrees. Beyond 30 degrees the bound is
+                // 0.96 max(base)
+                // for the diffuse lobe (1 - F <= 0.96) plus 1 for the specular lobe (F <= 1).
+                let bound = match m {
+                    Material::Gltf {
+                        base_color,
+                        metallic,
+                        ..
+                    } if t > 30.0 => 1.0 + (1.0 - metallic) * 0.96 * base_color.max_element(),
+                    _ => bound,
+                };
                 assert!(
                     (a - 3.0 * se).max_element() <= bound,
                     "{name} theta_i={t}: albedo {a} +- {se}"
@@ -1424,6 +1569,11 @@ mod tests {
                 alpha_x: 0.15,
                 alpha_y: 0.45,
                 tangent: Vec3::X,
+            },
+            Material::Gltf {
+                base_color: Vec3::new(0.9, 0.5, 0.2),
+                metallic: 0.4,
+                roughness: 0.5,
             },
         ];
         let mut rng = TestRng(11);
@@ -1629,6 +1779,32 @@ mod tests {
         assert!(ward(0.2, 0.1, Vec3::new(f32::NAN, 0.0, 1.0))
             .validate()
             .is_err());
+        let gltf = |b: f32, metallic: f32, roughness: f32| Material::Gltf {
+            base_color: Vec3::splat(b),
+            metallic,
+            roughness,
+        };
+        assert!(gltf(1.0, 0.0, 0.0).validate().is_ok());
+        assert!(gltf(0.0, 1.0, 1.0).validate().is_ok());
+        assert!(matches!(
+            gltf(1.1, 0.5, 0.5).validate(),
+            Err(MaterialError::Reflectance {
+                name: "base_color",
+                ..
+            })
+        ));
+        assert_eq!(
+            gltf(0.5, -0.1, 0.5).validate(),
+            Err(MaterialError::Factor {
+                name: "metallic",
+                value: -0.1
+            })
+        );
+        assert_eq!(
+            gltf(0.5, 0.5, 1.5).validate().unwrap_err().to_string(),
+            "glTF roughness 1.5 must be finite and in [0, 1]"
+        );
+        assert!(gltf(0.5, 0.5, f32::NAN).validate().is_err());
     }
 
     /// Ward's frame follows its tangent; every other material keeps `Frame::from_normal`.

@@ -42,7 +42,9 @@ pub const MAX_DIFFUSE_SH_ORDER: u32 = 10;
 
 /// Whether `m`'s diffuse term `f_d` (eq. 9's split) is separable, `c(v) g(s)` (module
 /// docs): Lambert, Blinn-Phong and the GGX plastic. The GGX conductor has none; Ward is not a
-/// vMF material.
+/// vMF material. The glTF BRDF's diffuse lobe `(1 - F(V.H)) base / pi` depends on the view
+/// and the light together through `V.H`, so it is not separable: its whole BRDF is the glossy
+/// term (`Material::glossy_eval`), fitted by the lobes like the conductor's, with no SH row.
 pub fn separable_diffuse(m: &Material) -> bool {
     matches!(
         m,

@@ -185,6 +185,9 @@ fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>, diffuse: bool) -> L
     if (m.kind == 0u) {
         return Lobes(vec3<f32>(0.0), m.color.xyz * (wo.z / PI));
     }
+    if (m.kind == 3u) {
+        return gltf_lobes(m, wi, wo, diffuse);
+    }
     // ggx_reflection: the half vector and D G / (4 cos theta_i).
     let h = normalize(wi + wo);
     let g = smith_g1(wi, h, m.alpha) * smith_g1(wo, h, m.alpha);
@@ -202,6 +205,35 @@ fn eval_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>, diffuse: bool) -> L
     let diff = m.diffuse.xyz / (1.0 - m.internal_reflectance)
         * ((1.0 / PI) / (m.ior * m.ior) * wo.z * ti * to);
     return Lobes(spec, diff);
+}
+
+// gltf_pbr::lobes (glTF 2.0 Appendix B): base colour in color.xyz, metallic in color.w,
+// alpha = roughness^2. Both directions above the horizon.
+fn gltf_lobes(m: CutsMaterial, wi: vec3<f32>, wo: vec3<f32>, diffuse: bool) -> Lobes {
+    let h = normalize(wi + wo);
+    let vh = clamp(dot(wi, h), 0.0, 1.0);
+    let a2 = m.alpha * m.alpha;
+    // D: (N.H)^2 (a^2 - 1) + 1 as h_x^2 + h_y^2 + h_z^2 a^2 (no cancellation near N.H = 1).
+    let t = (h.x * h.x + h.y * h.y) + h.z * h.z * a2;
+    var d = 0.0;
+    if (h.z > 0.0) {
+        d = a2 / (PI * t * t);
+    }
+    // Height-correlated Smith visibility V_GGX.
+    let vis = 0.5 / (wo.z * sqrt(a2 + (1.0 - a2) * wi.z * wi.z)
+        + wi.z * sqrt(a2 + (1.0 - a2) * wo.z * wo.z));
+    let spec = d * vis * wo.z;
+    let x = 1.0 - vh;
+    let x5 = (x * x) * (x * x) * x;
+    let f_d = 0.04 + 0.96 * x5;
+    let base = m.color.xyz;
+    let metallic = m.color.w;
+    let f_m = base + (vec3<f32>(1.0) - base) * x5;
+    let glossy = (vec3<f32>((1.0 - metallic) * f_d) + f_m * metallic) * spec;
+    if (!diffuse) {
+        return Lobes(glossy, vec3<f32>(0.0));
+    }
+    return Lobes(glossy, base * ((1.0 - metallic) * (1.0 - f_d) / PI * wo.z));
 }
 
 // shade_cuts::cluster_lobes: the BRDF's lobes towards world direction w.

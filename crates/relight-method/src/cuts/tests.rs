@@ -352,6 +352,8 @@ fn maps_travel_in_the_bundle_and_damaged_maps_are_refused() {
     };
     material.as_mut().unwrap().maps = Some(relight_scene::material::maps::MapsDesc {
         diffuse: Some("checker.png".into()),
+        // Stored beside the maps (`map_0_normal_scale`) and read back.
+        normal_scale: 0.5,
         ..Default::default()
     });
     let origin = dir.join("scene.json");
@@ -374,7 +376,9 @@ fn maps_travel_in_the_bundle_and_damaged_maps_are_refused() {
         settings,
         record: BakeRecord::new("bvh", 0.0, false, &(0..n), n),
     };
-    assert!(store(&b).unwrap().tensors.contains_key("map_0_diffuse"));
+    let stored = store(&b).unwrap();
+    assert!(stored.tensors.contains_key("map_0_diffuse"));
+    assert!(stored.tensors.contains_key("map_0_normal_scale"));
     let back = round_trip(&b).unwrap();
     assert_eq!(back.scene.maps.of(0), b.scene.maps.of(0));
     assert!(back.scene.maps.of(0).is_some() && back.scene.maps.of(1).is_none());

@@ -87,6 +87,21 @@ pub(super) fn textured_bsdf(
                 bsdf["specular_reflectance"] = scaled(dir, index, "specular", t, specular)?;
             }
         }
+        Material::Gltf {
+            base_color,
+            metallic,
+            roughness,
+        } => {
+            if let Some(t) = d {
+                bsdf["base_color"] = scaled(dir, index, "diffuse", t, base_color)?;
+            }
+            if let Some(t) = &maps.metallic_roughness {
+                // Blue times `metallic`, green times `roughness` (glTF's channels), each a
+                // one-channel texture; the plugin squares the interpolated roughness.
+                bsdf["metallic"] = channel(dir, index, "metallic", t, 2, metallic)?;
+                bsdf["roughness"] = channel(dir, index, "roughness", t, 1, roughness)?;
+            }
+        }
         // Refused before the maps are looked at (no Mitsuba counterpart).
         Material::BlinnPhong { .. } | Material::Ward { .. } => {}
     }
@@ -94,14 +109,25 @@ pub(super) fn textured_bsdf(
         return Ok(bsdf);
     };
     let flip_green = frames().map_err(|reason| refuse(index, "normal", reason))? < 0.0;
+    // `normal_scale` s: Mitsuba decodes `2 rgb - 1` and normalises, so the texels are written
+    // as `(s x, s y, z) / k` with one constant `k = max(|s|, 1)` keeping them in range: the
+    // bilinear lookup of those is the scaled lookup over `k`, the same direction.
+    let s = maps.normal_scale;
+    let k = s.abs().max(1.0);
     let texels: Vec<Vec3> = normal
         .texels()
         .iter()
         .map(|c| {
-            if flip_green {
+            let c = if flip_green {
                 Vec3::new(c.x, 1.0 - c.y, c.z)
             } else {
                 *c
+            };
+            if s == 1.0 {
+                c
+            } else {
+                let n = (c * 2.0 - Vec3::ONE) * Vec3::new(s, s, 1.0) / k;
+                (n + Vec3::ONE) * 0.5
             }
         })
         .collect();
@@ -110,6 +136,26 @@ pub(super) fn textured_bsdf(
         "normalmap": write_texture(dir, index, "normal", normal, &texels)?,
         "bsdf": bsdf,
     }))
+}
+
+/// Channel `c` of `t` times `factor`, written to all three channels of
+/// `tex_<index>_<kind>.exr`, read as channel 0 (a scalar texture).
+fn channel(
+    dir: &Path,
+    index: usize,
+    kind: &str,
+    t: &Texture,
+    c: usize,
+    factor: f32,
+) -> Result<Value, MitsubaError> {
+    let texels: Vec<Vec3> = t
+        .texels()
+        .iter()
+        .map(|x| Vec3::splat(x[c] * factor))
+        .collect();
+    let mut v = write_texture(dir, index, kind, t, &texels)?;
+    v["channel"] = json!(0);
+    Ok(v)
 }
 
 /// A conductor's roughness map: the first channel (written to all three, the script reads

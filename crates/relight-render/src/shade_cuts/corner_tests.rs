@@ -147,6 +147,11 @@ fn corner_frame_matches_the_path_tracer_as_the_triangle_merge_does() {
             alpha: 0.1,
             ior: 1.49,
         },
+        Material::Gltf {
+            base_color: Vec3::new(0.9, 0.6, 0.3),
+            metallic: 0.5,
+            roughness: 0.45,
+        },
     ];
     // The wrong sky (upside down): a control the tolerance must reject.
     let wrong = {

@@ -119,6 +119,11 @@ fn triangle_merge_equals_per_fragment_merge() {
             alpha: 0.1,
             ior: 1.5,
         },
+        Material::Gltf {
+            base_color: Vec3::new(0.9, 0.6, 0.3),
+            metallic: 0.4,
+            roughness: 0.4,
+        },
     ];
     // A sky brighter towards +x, so the sum depends on direction.
     let env = Environment::new(EnvMap::latlong_from_fn(32, 16, |d| {

@@ -2,24 +2,29 @@
 //! sec. 4.2: "the BRDF parameters of each pixel are read from textures, and the normal may be
 //! perturbed by a bump or normal map").
 //!
-//! A material may name up to four maps ([`MapsDesc`]); at a surface point of texture
+//! A material may name up to five maps ([`MapsDesc`]); at a surface point of texture
 //! coordinates `uv` ([`crate::texture`] states the lookup conventions):
 //! * `diffuse` **multiplies** the diffuse reflectance (Lambert's `albedo`, the `diffuse` of
-//!   Blinn-Phong, GGX plastic and Ward), per channel; sRGB-decoded when PNG;
+//!   Blinn-Phong, GGX plastic and Ward, glTF's `base_color`), per channel; sRGB-decoded when
+//!   PNG;
 //! * `specular` **multiplies** the specular reflectance (Blinn-Phong, GGX conductor and
 //!   plastic, Ward), per channel; sRGB-decoded when PNG;
 //! * `roughness` **replaces** the GGX `alpha` (conductor and plastic) by the map's first
 //!   channel, raised to at least [`MIN_MAP_ALPHA`]; for the plastic, whose Fresnel tables
 //!   are computed per `alpha`, it is also rounded to a multiple of 1/[`PLASTIC_ALPHA_STEPS`]
 //!   (at most that many tables);
+//! * `metallic_roughness` (glTF only, as glTF's `metallicRoughnessTexture`, linear): its
+//!   green channel **multiplies** `roughness`, its blue channel **multiplies** `metallic`;
 //! * `normal` is a **tangent-space normal map** (OpenGL convention: red = +u, green = +v,
-//!   blue = the normal), stored linearly: `n_t = 2 rgb - 1`. The shading normal becomes
+//!   blue = the normal), stored linearly: `n_t = (2 rgb - 1) * (s, s, 1)` with `s` the
+//!   `normal_scale` (default 1; glTF's `normalTexture.scale`). The shading normal becomes
 //!   `normalize(n_t.x T + n_t.y B + n_t.z N)` with `N` the interpolated vertex normal, `T` the
 //!   interpolated per-vertex tangent made orthogonal to `N` (Gram-Schmidt) and
 //!   `B = sign N x T` ([`vertex_tangents`]). A flat map (`(0.5, 0.5, 1)`) gives `N` exactly.
 //!
 //! Maps on a material that has no such parameter are refused by name (a `roughness` map on a
-//! Lambert material, a `diffuse` map on a conductor), as is a map on a mesh without texture
+//! Lambert material, a `diffuse` map on a conductor, a `specular` or `roughness` map on a glTF
+//! material), as is a map on a mesh without texture
 //! coordinates. [`shading_at`] is the one place where a material and its shading frame are
 //! looked up at a surface point: the path tracer and the cuts deferred buffer both call it,
 //! so they agree by construction.
@@ -44,7 +49,7 @@ pub const PLASTIC_ALPHA_STEPS: f32 = 256.0;
 /// The maps a material names (paths as written; relative ones are resolved against the
 /// folder of the JSON file that names them, and must stay inside it unless
 /// [`PathPolicy::allow_outside`]).
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MapsDesc {
     /// Multiplies the diffuse reflectance (PNG sRGB, EXR linear).
@@ -56,9 +61,36 @@ pub struct MapsDesc {
     /// Replaces the GGX `alpha` (first channel, linear).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub roughness: Option<String>,
+    /// glTF only: green multiplies `roughness`, blue multiplies `metallic` (linear).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metallic_roughness: Option<String>,
     /// Tangent-space normal map (linear, `2 rgb - 1`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<String>,
+    /// Scale of the normal map's `x` and `y` (glTF's `normalTexture.scale`; default 1).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub normal_scale: f32,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+fn is_one(v: &f32) -> bool {
+    *v == 1.0
+}
+
+impl Default for MapsDesc {
+    fn default() -> Self {
+        MapsDesc {
+            diffuse: None,
+            specular: None,
+            roughness: None,
+            metallic_roughness: None,
+            normal: None,
+            normal_scale: 1.0,
+        }
+    }
 }
 
 /// A material as a scene or material file writes it: the constant [`Material`] and, in the
@@ -84,7 +116,7 @@ impl From<Material> for MaterialDesc {
 }
 
 /// The loaded maps of one material (see the module docs).
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct MaterialMaps {
     /// Multiplies the diffuse reflectance.
     pub diffuse: Option<Texture>,
@@ -92,8 +124,25 @@ pub struct MaterialMaps {
     pub specular: Option<Texture>,
     /// Replaces the GGX `alpha`.
     pub roughness: Option<Texture>,
+    /// glTF: green multiplies `roughness`, blue multiplies `metallic`.
+    pub metallic_roughness: Option<Texture>,
     /// Tangent-space normal map.
     pub normal: Option<Texture>,
+    /// Scale of the normal map's `x` and `y` (1 by default).
+    pub normal_scale: f32,
+}
+
+impl Default for MaterialMaps {
+    fn default() -> Self {
+        MaterialMaps {
+            diffuse: None,
+            specular: None,
+            roughness: None,
+            metallic_roughness: None,
+            normal: None,
+            normal_scale: 1.0,
+        }
+    }
 }
 
 /// Which map names a material accepts, or why not.
@@ -102,9 +151,10 @@ fn check_applies(m: &Material, which: &str) -> Result<(), String> {
         ("normal", _) => true,
         ("diffuse", Material::GgxConductor { .. }) => false,
         ("diffuse", _) => true,
-        ("specular", Material::Lambert { .. }) => false,
+        ("specular", Material::Lambert { .. } | Material::Gltf { .. }) => false,
         ("specular", _) => true,
         ("roughness", Material::GgxConductor { .. } | Material::GgxPlastic { .. }) => true,
+        ("metallic_roughness", Material::Gltf { .. }) => true,
         _ => false,
     };
     if ok {
@@ -115,33 +165,47 @@ fn check_applies(m: &Material, which: &str) -> Result<(), String> {
             .and_then(|v| v.get("type").and_then(|t| t.as_str().map(String::from)))
             .unwrap_or_default();
         Err(format!(
-            "a {which} map on a {kind} material: it has no such parameter (diffuse: all but ggx_conductor; specular: all but lambert; roughness: ggx_conductor, ggx_plastic)"
+            "a {which} map on a {kind} material: it has no such parameter (diffuse: all but ggx_conductor; specular: all but lambert and gltf; roughness: ggx_conductor, ggx_plastic; metallic_roughness: gltf)"
         ))
     }
 }
 
 /// The kinds of map, in the order of [`MaterialMaps::textures`].
-pub const MAP_KINDS: [&str; 4] = ["diffuse", "specular", "roughness", "normal"];
+pub const MAP_KINDS: [&str; 5] = [
+    "diffuse",
+    "specular",
+    "roughness",
+    "normal",
+    "metallic_roughness",
+];
 
 impl MaterialMaps {
-    /// The four maps in the order of [`MAP_KINDS`].
-    pub fn textures(&self) -> [&Option<Texture>; 4] {
-        [&self.diffuse, &self.specular, &self.roughness, &self.normal]
+    /// The five maps in the order of [`MAP_KINDS`].
+    pub fn textures(&self) -> [&Option<Texture>; 5] {
+        [
+            &self.diffuse,
+            &self.specular,
+            &self.roughness,
+            &self.normal,
+            &self.metallic_roughness,
+        ]
     }
 
-    /// The four maps in the order of [`MAP_KINDS`], to fill in.
-    pub fn textures_mut(&mut self) -> [&mut Option<Texture>; 4] {
+    /// The five maps in the order of [`MAP_KINDS`], to fill in.
+    pub fn textures_mut(&mut self) -> [&mut Option<Texture>; 5] {
         [
             &mut self.diffuse,
             &mut self.specular,
             &mut self.roughness,
             &mut self.normal,
+            &mut self.metallic_roughness,
         ]
     }
 
     /// Load the maps `desc` names for `material`: each path is resolved against the folder of
     /// `origin` (the JSON file naming it) under `policy` ([`files::resolve_model_ref`]) and
-    /// read as a [`Texture`]. Errors name the file (or `origin` and the map) and the problem.
+    /// read as a [`Texture`]. Errors name the file (or `origin` and the map) and the problem
+    /// (a `normal_scale` that is not finite is refused).
     pub fn load(
         desc: &MapsDesc,
         material: &Material,
@@ -157,17 +221,29 @@ impl MaterialMaps {
                 Texture::read(&path, enc).map(Some)
             }
         };
+        if !desc.normal_scale.is_finite() {
+            return Err(SceneError::malformed(
+                origin,
+                format!("maps.normal_scale {} must be finite", desc.normal_scale),
+            ));
+        }
         Ok(MaterialMaps {
             diffuse: load("diffuse", &desc.diffuse, Encoding::Colour)?,
             specular: load("specular", &desc.specular, Encoding::Colour)?,
             roughness: load("roughness", &desc.roughness, Encoding::Data)?,
+            metallic_roughness: load(
+                "metallic_roughness",
+                &desc.metallic_roughness,
+                Encoding::Data,
+            )?,
             normal: load("normal", &desc.normal, Encoding::Data)?,
+            normal_scale: desc.normal_scale,
         })
     }
 
     /// `m` with the maps applied at `uv` (module docs). The result passes
     /// [`Material::validate`] when `m` does: maps only scale reflectances by `[0, 1]` and
-    /// give an `alpha` in `[MIN_MAP_ALPHA, 1]`.
+    /// give an `alpha` in `[MIN_MAP_ALPHA, 1]`, and scale glTF factors by `[0, 1]`.
     pub fn apply(&self, m: Material, uv: Vec2) -> Material {
         let d = self.diffuse.as_ref().map_or(Vec3::ONE, |t| t.lookup(uv));
         let s = self.specular.as_ref().map_or(Vec3::ONE, |t| t.lookup(uv));
@@ -220,6 +296,21 @@ impl MaterialMaps {
                 alpha_y,
                 tangent,
             },
+            Material::Gltf {
+                base_color,
+                metallic,
+                roughness,
+            } => {
+                let mr = self
+                    .metallic_roughness
+                    .as_ref()
+                    .map_or(Vec3::ONE, |t| t.lookup(uv));
+                Material::Gltf {
+                    base_color: base_color * d,
+                    metallic: metallic * mr.z,
+                    roughness: roughness * mr.y,
+                }
+            }
         }
     }
 
@@ -230,7 +321,8 @@ impl MaterialMaps {
         let Some(map) = &self.normal else {
             return n;
         };
-        let c = map.lookup(uv) * 2.0 - Vec3::ONE;
+        let s = self.normal_scale;
+        let c = (map.lookup(uv) * 2.0 - Vec3::ONE) * Vec3::new(s, s, 1.0);
         if c.x == 0.0 && c.y == 0.0 && c.z > 0.0 {
             return n; // a flat texel: exactly the normal
         }

@@ -9,7 +9,7 @@
 //!   one per texel, computed once per vertex;
 //! * the plastic's Fresnel term needs `wi.h / |h|`, one square root.
 //!
-//! Other materials (Blinn-Phong) call `glossy_eval` per texel. The kernel agrees with
+//! Other materials (Blinn-Phong, Ward, glTF) call `glossy_eval` per texel. The kernel agrees with
 //! `glossy_eval` to float rounding (tested).
 
 use glam::Vec3;
@@ -78,9 +78,12 @@ impl GlossyKernel {
                 specular,
                 ior: Some(ior),
             },
-            Material::Lambert { .. } | Material::BlinnPhong { .. } | Material::Ward { .. } => {
-                Kind::Generic(*m)
-            }
+            // glTF: its glossy part is the whole BRDF (Material::diffuse_factors), evaluated
+            // per texel.
+            Material::Lambert { .. }
+            | Material::BlinnPhong { .. }
+            | Material::Ward { .. }
+            | Material::Gltf { .. } => Kind::Generic(*m),
         };
         let g1o = match kind {
             Kind::Ggx { alpha, .. } => visible
