@@ -1,8 +1,9 @@
 //! Wavefront OBJ (+ MTL) reader.
 //!
 //! Supported: `v`, `vt`, `vn`, `f` (any polygon, fan-triangulated; `v`, `v/vt`, `v//vn`,
-//! `v/vt/vn`; negative indices are relative), `usemtl`, `mtllib`. Ignored: groups, smoothing
-//! groups, lines, points, free-form geometry. One output vertex per distinct
+//! `v/vt/vn`; negative indices are relative), `usemtl`, `mtllib`, and `o` / `g` as object
+//! names ([`LoadedMesh::objects`]: a new object at each `o` or `g` line followed by faces;
+//! faces before any are named after the file stem). Ignored: smoothing groups, lines, points, free-form geometry. One output vertex per distinct
 //! (position, uv, normal) triple used by a face, so unused vertices disappear.
 //! UVs are stored as in the file (OBJ's `v` points up). If any face corner lacks a normal,
 //! all normals are recomputed (angle-weighted).
@@ -39,6 +40,9 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
     let mut materials: Vec<Material> = Vec::new();
     let mut material_index: HashMap<String, u32> = HashMap::new();
     let mut current: Option<u32> = None;
+    let stem = super::file_stem(path);
+    // Objects as (name, first triangle), in order.
+    let mut objects: Vec<(String, u32)> = Vec::new();
     let mut corners: Vec<u32> = Vec::new();
 
     for (ln, raw) in text.lines().enumerate() {
@@ -100,11 +104,27 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
                         m
                     }
                 };
+                if objects.is_empty() {
+                    objects.push((stem.clone(), 0));
+                }
                 let total = (mesh.indices.len() + corners.len() - 2) as u64;
                 opts.check_triangles(total, true, || crate::error::Location::line(path, ln))?;
                 for k in 1..corners.len() - 1 {
                     mesh.indices.push([corners[0], corners[k], corners[k + 1]]);
                     mesh.material_ids.push(mat);
+                }
+            }
+            "o" | "g" => {
+                let name = line[1..].trim();
+                let name = if name.is_empty() {
+                    stem.clone()
+                } else {
+                    name.to_string()
+                };
+                let start = mesh.indices.len() as u32;
+                match objects.last_mut() {
+                    Some((n, s)) if *s == start => *n = name,
+                    _ => objects.push((name, start)),
                 }
             }
             "mtllib" => {
@@ -162,7 +182,12 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
             })?;
         }
     }
+    let end = mesh.indices.len() as u32;
+    let objects = super::objects_from_starts(objects, end);
     Ok(LoadedMesh {
+        maps: Vec::new(),
+        objects,
+        camera: None,
         mesh,
         materials,
         warnings,

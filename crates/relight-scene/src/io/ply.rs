@@ -269,9 +269,16 @@ pub fn read_ply(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
         }
     }
     mesh.material_ids = vec![0; mesh.indices.len()];
+    let objects = vec![super::MeshObject {
+        name: super::file_stem(path),
+        triangles: 0..mesh.indices.len() as u32,
+    }];
     Ok(LoadedMesh {
         mesh,
         materials: vec![Default::default()],
+        maps: Vec::new(),
+        objects,
+        camera: None,
         warnings: Vec::new(),
     })
 }
