@@ -104,7 +104,7 @@ pub fn read_gltf(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErr
         .document
         .into_json();
     check_extensions(path, &root)?;
-    let doc = gltf::Document::from_json(root).map_err(|e| gltf_error(path, e))?;
+    let doc = validate(path, root)?;
     let buffers = load_buffers(path, &doc, bin, opts)?;
     let mut r = Reader {
         visits: 0,
@@ -204,6 +204,26 @@ fn gltf_error(path: &Path, e: gltf::Error) -> SceneError {
         }
         e => SceneError::malformed(path, format!("glTF: {e}")),
     }
+}
+
+/// The document, once the `gltf` crate's validation passed (indices in range, required
+/// fields present), except that a `POSITION` accessor need not state its `min` and `max`
+/// (relight does not use them).
+fn validate(path: &Path, root: gltf::json::Root) -> Result<gltf::Document, SceneError> {
+    use gltf::json::validation::{Error, Validate};
+    let mut errors = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |p, e| {
+        let p = p();
+        let bounds = p.as_str().ends_with("[\"POSITION\"].min")
+            || p.as_str().ends_with("[\"POSITION\"].max");
+        if !(bounds && e == Error::Missing) {
+            errors.push((p, e));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(gltf_error(path, gltf::Error::Validation(errors)));
+    }
+    Ok(gltf::Document::from_json_without_validation(root))
 }
 
 /// Refuse required extensions relight does not support, and used ones it cannot honour.

@@ -207,3 +207,128 @@ fn corrupted_textures_never_panic() {
         assert!(n > 20);
     }
 }
+
+/// A 4 x 4 texture whose texel `(x, y)` is `(x / 4, y / 4, 0)`.
+fn grid(sampler: Sampler) -> Texture {
+    let texels = (0..16)
+        .map(|i| Vec3::new((i % 4) as f32 / 4.0, (i / 4) as f32 / 4.0, 0.0))
+        .collect();
+    Texture::new(4, 4, texels).unwrap().with_sampler(sampler)
+}
+
+fn at(x: i64, y: i64) -> Vec3 {
+    Vec3::new(x as f32 / 4.0, y as f32 / 4.0, 0.0)
+}
+
+#[test]
+fn texture_transform_composes_as_khr_texture_transform_in_gltf_uv_space() {
+    let nearest = |wrap_t| Sampler {
+        wrap_s: Wrap::Repeat,
+        wrap_t,
+        filter: Filter::Nearest,
+    };
+    let t = UvTransform {
+        offset: Vec2::new(0.25, 0.0),
+        rotation: std::f32::consts::FRAC_PI_2,
+        scale: Vec2::new(2.0, 1.0),
+    };
+    // By hand: mesh (u, v) = (0.1, 0.7) is glTF (s, t) = (0.1, 0.3); scaled (0.2, 0.3);
+    // rotated by 90 degrees (cos 0, sin 1): s = 0.3, t = -0.2; offset: (0.55, -0.2).
+    let st = t.apply(Vec2::new(0.1, 0.3));
+    assert!((st - Vec2::new(0.55, -0.2)).length() < 1e-6, "{st}");
+    let uv = Vec2::new(0.1, 0.7);
+    // Texel x = floor(0.55 * 4) = 2; y = floor(-0.2 * 4) = -1, which repeats to 3, clamps to
+    // 0 and mirrors to 0.
+    for (wrap, y) in [
+        (Wrap::Repeat, 3),
+        (Wrap::ClampToEdge, 0),
+        (Wrap::MirroredRepeat, 0),
+    ] {
+        let tex = grid(nearest(wrap)).with_transform(Some(t));
+        assert_eq!(tex.lookup(uv), at(2, y), "{wrap:?}");
+    }
+    // Without the transform: (0.1, 0.3) reads texel (0, 1).
+    assert_eq!(grid(nearest(Wrap::Repeat)).lookup(uv), at(0, 1));
+    // Offset alone moves the image: +0.25 in s reads one texel further right.
+    let shift = UvTransform {
+        offset: Vec2::new(0.25, 0.0),
+        ..UvTransform::default()
+    };
+    let tex = grid(nearest(Wrap::Repeat)).with_transform(Some(shift));
+    assert_eq!(tex.lookup(uv), at(1, 1));
+}
+
+#[test]
+fn wrap_modes_and_filters_match_their_definitions() {
+    // Index wrapping, against the definitions.
+    for i in -9..13i64 {
+        assert_eq!(Wrap::Repeat.index(i, 4), i.rem_euclid(4));
+        assert_eq!(Wrap::ClampToEdge.index(i, 4), i.clamp(0, 3));
+        let m = i.rem_euclid(8);
+        assert_eq!(
+            Wrap::MirroredRepeat.index(i, 4),
+            if m < 4 { m } else { 7 - m }
+        );
+    }
+    let s = |wrap, filter| Sampler {
+        wrap_s: wrap,
+        wrap_t: wrap,
+        filter,
+    };
+    // Bilinear half-way between the last and first texel columns of row 0 (t = 0.125 is the
+    // row's centre; s = 1.0 is the right edge): repeat blends texels 3 and 0, clamp stays on
+    // texel 3, mirror blends texel 3 with itself.
+    let uv = Vec2::new(1.0, 1.0 - 0.125);
+    let lin = |w| grid(s(w, Filter::Linear)).lookup(uv);
+    assert!((lin(Wrap::Repeat) - (at(3, 0) + at(0, 0)) * 0.5).length() < 1e-6);
+    assert!((lin(Wrap::ClampToEdge) - at(3, 0)).length() < 1e-6);
+    assert!((lin(Wrap::MirroredRepeat) - at(3, 0)).length() < 1e-6);
+    // Nearest reads the texel containing the point, no blend.
+    let uv = Vec2::new(0.49, 1.0 - 0.6);
+    assert_eq!(grid(s(Wrap::Repeat, Filter::Nearest)).lookup(uv), at(1, 2));
+    // Huge and non-finite coordinates neither panic nor leave the image.
+    for w in [Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat] {
+        for f in [Filter::Linear, Filter::Nearest] {
+            let t = grid(s(w, f));
+            for uv in [Vec2::splat(1e30), Vec2::splat(-1e30), Vec2::NAN] {
+                let c = t.lookup(uv);
+                assert!(
+                    c.is_finite() && c.cmple(Vec3::ONE).all(),
+                    "{w:?} {f:?} {uv}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn decode_reads_png_and_refuses_other_formats_by_name() {
+    let dir = temp_dir("tex-decode");
+    let p = dir.join("a.png");
+    write_png(&p, 2, 1, 3, &[255, 0, 0, 0, 0, 255]);
+    let bytes = std::fs::read(&p).unwrap();
+    let t = Texture::decode(&bytes, Encoding::Data).unwrap();
+    assert_eq!(t.texels(), &[Vec3::X, Vec3::Z]);
+    let ktx2 = b"\xABKTX 20\xBB\r\n\x1a\n0000".to_vec();
+    assert!(Texture::decode(&ktx2, Encoding::Colour)
+        .unwrap_err()
+        .contains("KTX2"));
+    let webp = b"RIFF0000WEBPVP8 ".to_vec();
+    assert!(Texture::decode(&webp, Encoding::Colour)
+        .unwrap_err()
+        .contains("WebP"));
+    // A JPEG signature on garbage is a JPEG error, not a panic.
+    let e = Texture::decode(&[0xFF, 0xD8, 0xFF, 0xE0, 0, 3, 1], Encoding::Colour).unwrap_err();
+    assert!(e.contains("JPEG"), "{e}");
+    // Oversized: refused from the header.
+    let big = dir.join("big.png");
+    write_png(
+        &big,
+        MAX_TEXTURE_SIDE as u32 + 1,
+        1,
+        1,
+        &vec![0; MAX_TEXTURE_SIDE + 1],
+    );
+    let e = Texture::decode(&std::fs::read(&big).unwrap(), Encoding::Data).unwrap_err();
+    assert!(e.contains("exceed the texture limit"), "{e}");
+}
