@@ -557,4 +557,41 @@ mod tests {
         // SOURCES.md: welding at 1e-4 leaves 3,241 vertices.
         assert_eq!(crate::meshops::weld(&m.mesh, 1e-4).vertex_count(), 3_241);
     }
+
+    #[test]
+    fn objects_follow_o_and_g_lines_and_default_to_the_file_stem() {
+        let dir = temp_dir("objnames");
+        // Faces before any name, then `o a`, an empty `g` (the stem), `g a` again, and a
+        // name with no face after it.
+        let text =
+            format!("{QUAD}f 1 2 3\no a\nf 1 3 4\nf 1 2 4\ng\nf 2 3 4\ng a\nf 1 2 3\no unused\n");
+        let m = load_mesh(&write(&dir, "thing.obj", &text)).unwrap();
+        let got: Vec<(&str, std::ops::Range<u32>)> = m
+            .objects
+            .iter()
+            .map(|o| (o.name.as_str(), o.triangles.clone()))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("thing", 0..1),
+                ("a", 1..3),
+                ("thing.1", 3..4),
+                ("a.1", 4..5)
+            ]
+        );
+        // Without names: one object named after the file.
+        let m = load_mesh(&write(&dir, "plain.obj", &format!("{QUAD}f 1 2 3 4\n"))).unwrap();
+        assert_eq!(m.objects.len(), 1);
+        assert_eq!(
+            (m.objects[0].name.as_str(), m.objects[0].triangles.clone()),
+            ("plain", 0..2)
+        );
+        assert_eq!(m.maps.len(), m.materials.len());
+        // A degenerate triangle dropped on load shifts the ranges after it.
+        let text = format!("{QUAD}o x\nf 1 2 3\nf 1 1 2\no y\nf 1 3 4\n");
+        let m = load_mesh(&write(&dir, "degen.obj", &text)).unwrap();
+        let got: Vec<_> = m.objects.iter().map(|o| o.triangles.clone()).collect();
+        assert_eq!(got, [0..1, 1..2]);
+    }
 }

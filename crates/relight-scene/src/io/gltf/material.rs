@@ -319,7 +319,7 @@ fn decode_image(
             }
             let what = format!("{what} '{uri}'");
             (
-                super::read_uri(path, uri, &what, files::MAX_FILE_BYTES, opts)?.into(),
+                super::buffers::read_uri(path, uri, &what, files::MAX_FILE_BYTES, opts)?.into(),
                 mime_type,
             )
         }

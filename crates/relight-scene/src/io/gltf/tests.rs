@@ -1,6 +1,8 @@
 //! Tests of the glTF reader: small files built here (JSON, base64 buffers, GLB, PNGs).
 
+use super::buffers::base64_decode;
 use super::*;
+use crate::io::files;
 use crate::io::{load_mesh, test_util::temp_dir};
 use std::path::PathBuf;
 
