@@ -534,7 +534,17 @@ mod tests {
         let m = tetra();
         let p = dir.join("t.ply");
         write_ply(&p, &m).unwrap();
-        let back = load_mesh(&p).unwrap().mesh;
+        let loaded = load_mesh(&p).unwrap();
+        // One object, named after the file.
+        let n = m.indices.len() as u32;
+        assert_eq!(
+            loaded.objects,
+            [crate::io::MeshObject {
+                name: "t".into(),
+                triangles: 0..n
+            }]
+        );
+        let back = loaded.mesh;
         assert_eq!(back.positions, m.positions);
         assert_eq!(back.normals, m.normals);
         assert_eq!(back.uvs, m.uvs);

@@ -126,6 +126,11 @@ pub(crate) fn read_material(
     let at = |msg: String| SceneError::malformed(path, format!("material '{name}': {msg}"));
     let unsupported =
         |msg: String| SceneError::unsupported(path, format!("material '{name}': {msg}"));
+    if m.emissive_strength().is_some() {
+        return Err(unsupported(
+            "KHR_materials_emissive_strength: relight's methods carry no emission".into(),
+        ));
+    }
     if m.emissive_texture().is_some() {
         return Err(unsupported(
             "emissiveTexture: relight's methods carry no emission".into(),

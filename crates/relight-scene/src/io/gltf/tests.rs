@@ -606,6 +606,15 @@ fn extensions_emission_and_factors_are_refused_by_name() {
             "emissiveFactor",
         ),
         (
+            // The material extension without its declaration is refused the same way.
+            BASE_TEX.replace(
+                r#""name": "paint","#,
+                r#""name": "paint", "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 2}},"#,
+            ),
+            "",
+            "KHR_materials_emissive_strength: relight's methods carry no emission",
+        ),
+        (
             BASE_TEX.replace(
                 r#""name": "paint","#,
                 r#""name": "paint", "emissiveTexture": {"index": 0},"#,
