@@ -750,3 +750,28 @@ fn objects_are_named_and_the_first_camera_is_read() {
     assert!(m.camera.is_none());
     assert!(m.warnings.iter().any(|w| w.contains("orthographic")));
 }
+
+/// A scene file's mesh shape keeps a glTF's maps unless it overrides the material.
+#[test]
+fn a_scene_file_uses_the_maps_of_a_gltf_mesh_without_a_material() {
+    let dir = temp_dir("gltfscene");
+    let img = format!(r#"{{"uri": "{}"}}"#, data_uri("image/png", &png_2x2(&dir)));
+    write(&dir, "t.gltf", &textured_json(BASE_TEX, &img, ""));
+    let scene = |shape: &str| {
+        let text = format!(
+            r#"{{"shapes": [{shape}], "environment": {{"type": "constant", "radiance": [1, 1, 1]}},
+            "camera": {{"origin": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0], "fov_deg": 40, "width": 8, "height": 8}}}}"#
+        );
+        let origin = write(&dir, "s.json", &text);
+        crate::scene_file::SceneDesc::read(&origin)
+            .unwrap()
+            .build(&origin)
+            .unwrap()
+    };
+    let own = scene(r#"{"type": "mesh", "file": "t.gltf"}"#);
+    assert!(!own.maps.is_empty());
+    let overridden = scene(
+        r#"{"type": "mesh", "file": "t.gltf", "material": {"type": "lambert", "albedo": [0.5, 0.5, 0.5]}}"#,
+    );
+    assert!(overridden.maps.is_empty());
+}
