@@ -332,3 +332,57 @@ fn decode_reads_png_and_refuses_other_formats_by_name() {
     let e = Texture::decode(&std::fs::read(&big).unwrap(), Encoding::Data).unwrap_err();
     assert!(e.contains("exceed the texture limit"), "{e}");
 }
+
+/// A 16 x 16 baseline JPEG (quality 100, written by Mitsuba 3's `Bitmap.write` for this test):
+/// red, green / blue, white quadrants of 8 x 8 texels.
+const JPEG_QUADRANTS_HEX: &[&str] = &[
+    "ffd8ffe000104a46494600010100000100010000ffdb0043000101010101010101010101010101010101010101010101",
+    "0101010101010101010101010101010101010101010101010101010101010101010101010101010101ffdb0043010101",
+    "010101010101010101010101010101010101010101010101010101010101010101010101010101010101010101010101",
+    "0101010101010101010101010101ffc00011080010001003011100021101031101ffc4001f0000010501010101010100",
+    "000000000000000102030405060708090a0bffc400b5100002010303020403050504040000017d010203000411051221",
+    "31410613516107227114328191a1082342b1c11552d1f02433627282090a161718191a25262728292a3435363738393a",
+    "434445464748494a535455565758595a636465666768696a737475767778797a838485868788898a9293949596979899",
+    "9aa2a3a4a5a6a7a8a9aab2b3b4b5b6b7b8b9bac2c3c4c5c6c7c8c9cad2d3d4d5d6d7d8d9dae1e2e3e4e5e6e7e8e9eaf1",
+    "f2f3f4f5f6f7f8f9faffc4001f0100030101010101010101010000000000000102030405060708090a0bffc400b51100",
+    "020102040403040705040400010277000102031104052131061241510761711322328108144291a1b1c109233352f015",
+    "6272d10a162434e125f11718191a262728292a35363738393a434445464748494a535455565758595a63646566676869",
+    "6a737475767778797a82838485868788898a92939495969798999aa2a3a4a5a6a7a8a9aab2b3b4b5b6b7b8b9bac2c3c4",
+    "c5c6c7c8c9cad2d3d4d5d6d7d8d9dae2e3e4e5e6e7e8e9eaf2f3f4f5f6f7f8f9faffda000c03010002110311003f00fc",
+    "5faff29cff00bf83fa50aff2dcff00c2bcfe0debff006983feac0ff710aff8073faa0fffd9",
+];
+
+fn from_hex(parts: &[&str]) -> Vec<u8> {
+    let h: String = parts.concat();
+    (0..h.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&h[i..i + 2], 16).unwrap())
+        .collect()
+}
+
+#[test]
+fn jpeg_decodes_to_its_colours() {
+    let bytes = from_hex(JPEG_QUADRANTS_HEX);
+    let t = Texture::decode(&bytes, Encoding::Data).unwrap();
+    assert_eq!((t.width(), t.height()), (16, 16));
+    // Quadrant centres, away from the edges chroma subsampling blurs: JPEG at quality 100
+    // stays within a few of 255 levels of the source there (0.02 is 5 levels).
+    for ((x, y), want) in [
+        ((3, 3), Vec3::X),
+        ((12, 3), Vec3::Y),
+        ((3, 12), Vec3::Z),
+        ((12, 12), Vec3::ONE),
+    ] {
+        let got = t.texel(x, y);
+        assert!((got - want).abs().max_element() < 0.02, "({x}, {y}): {got}");
+    }
+    // Colour decoding applies the sRGB curve to the same samples.
+    let c = Texture::decode(&bytes, Encoding::Colour).unwrap();
+    let (d, s) = (t.texel(12, 12), c.texel(12, 12));
+    assert!((srgb_to_linear(d.x) - s.x).abs() < 1e-6);
+    // Truncated: an error, not a panic.
+    for n in [2, 20, 200, bytes.len() - 2] {
+        let r = std::panic::catch_unwind(|| Texture::decode(&bytes[..n], Encoding::Data));
+        assert!(r.is_ok(), "panic at {n} bytes");
+    }
+}
