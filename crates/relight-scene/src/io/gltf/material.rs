@@ -5,8 +5,8 @@
 //! Textures: the image is decoded by [`Texture::decode`] (PNG, JPEG) as sRGB for the base
 //! colour and linearly for the metallic-roughness and normal textures; the texture's sampler
 //! (`wrapS`, `wrapT`, `magFilter`; minification is bilinear) and `KHR_texture_transform`
-//! (offset, rotation, scale; a `texCoord` override other than 0 is warned about and read with
-//! `TEXCOORD_0`) go with it ([`crate::texture`] defines them in glTF's image space). The
+//! (offset, rotation, scale, on the normal texture too; a `texCoord` override other than 0 is
+//! warned about and read with `TEXCOORD_0`) go with it ([`crate::texture`] defines them in glTF's image space). The
 //! normal texture's `scale` multiplies the map's x and y (glTF: `normalize((2 rgb - 1)
 //! (scale, scale, 1))`).
 
@@ -163,20 +163,15 @@ pub(crate) fn read_material(
     let mut second_uv = false;
     let mut texture = |t: gltf::texture::Texture,
                        tex_coord: u32,
-                       transform: Option<gltf::texture::TextureTransform>,
+                       transform: Option<(UvTransform, Option<u32>)>,
                        encoding: Encoding,
                        which: &str|
      -> Result<Texture, SceneError> {
         let transform = match transform {
-            Some(tt) => {
-                if tt.tex_coord().is_some_and(|c| c != 0) {
+            Some((t, override_coord)) => {
+                if override_coord.is_some_and(|c| c != 0) {
                     second_uv = true;
                 }
-                let t = UvTransform {
-                    offset: Vec2::from(tt.offset()),
-                    rotation: tt.rotation(),
-                    scale: Vec2::from(tt.scale()),
-                };
                 if !(t.offset.is_finite() && t.rotation.is_finite() && t.scale.is_finite()) {
                     return Err(at(format!("{which}: KHR_texture_transform is not finite")));
                 }
@@ -218,7 +213,7 @@ pub(crate) fn read_material(
         Some(info) => Some(texture(
             info.texture(),
             info.tex_coord(),
-            info.texture_transform(),
+            info.texture_transform().map(|t| typed_transform(&t)),
             Encoding::Colour,
             "baseColorTexture",
         )?),
@@ -228,7 +223,7 @@ pub(crate) fn read_material(
         Some(info) => Some(texture(
             info.texture(),
             info.tex_coord(),
-            info.texture_transform(),
+            info.texture_transform().map(|t| typed_transform(&t)),
             Encoding::Data,
             "metallicRoughnessTexture",
         )?),
@@ -242,10 +237,17 @@ pub(crate) fn read_material(
                     n.scale()
                 )));
             }
+            let tt = match n.extension_value("KHR_texture_transform") {
+                Some(v) => Some(
+                    json_transform(v)
+                        .map_err(|m| at(format!("normalTexture: KHR_texture_transform: {m}")))?,
+                ),
+                None => None,
+            };
             let t = texture(
                 n.texture(),
                 n.tex_coord(),
-                None,
+                tt,
                 Encoding::Data,
                 "normalTexture",
             )?;
@@ -270,6 +272,43 @@ pub(crate) fn read_material(
         normal,
         normal_scale,
     })
+}
+
+/// A typed `KHR_texture_transform` and its `texCoord` override.
+fn typed_transform(t: &gltf::texture::TextureTransform) -> (UvTransform, Option<u32>) {
+    let uv = UvTransform {
+        offset: Vec2::from(t.offset()),
+        rotation: t.rotation(),
+        scale: Vec2::from(t.scale()),
+    };
+    (uv, t.tex_coord())
+}
+
+/// A `KHR_texture_transform` from its JSON (the `gltf` crate types it on texture infos but
+/// not on the normal texture): `offset` (default `[0, 0]`), `rotation` (0), `scale`
+/// (`[1, 1]`), `texCoord`.
+fn json_transform(v: &serde_json::Value) -> Result<(UvTransform, Option<u32>), String> {
+    #[derive(serde::Deserialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Khr {
+        #[serde(default)]
+        offset: [f32; 2],
+        #[serde(default)]
+        rotation: f32,
+        #[serde(default = "one")]
+        scale: [f32; 2],
+        tex_coord: Option<u32>,
+    }
+    fn one() -> [f32; 2] {
+        [1.0, 1.0]
+    }
+    let k: Khr = serde_json::from_value(v.clone()).map_err(|e| e.to_string())?;
+    let uv = UvTransform {
+        offset: Vec2::from(k.offset),
+        rotation: k.rotation,
+        scale: Vec2::from(k.scale),
+    };
+    Ok((uv, k.tex_coord))
 }
 
 /// `e` with `p` put before its message (errors keep their kind).

@@ -285,7 +285,7 @@ fn texture_transform_metallic_roughness_and_normal_maps_are_carried() {
     let img = format!(r#"{{"uri": "{}"}}"#, data_uri("image/png", &png_2x2(&dir)));
     let mat = r#"{"pbrMetallicRoughness": {"metallicFactor": 1, "roughnessFactor": 0.5,
         "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 0.25, "scale": [2, 3]}}},
-        "metallicRoughnessTexture": {"index": 0}}, "normalTexture": {"index": 0, "scale": 0.5}}"#;
+        "metallicRoughnessTexture": {"index": 0}}, "normalTexture": {"index": 0, "scale": 0.5, "extensions": {"KHR_texture_transform": {"rotation": 1.5}}}}"#;
     let extra = r#", "extensionsUsed": ["KHR_texture_transform"], "extensionsRequired": ["KHR_texture_transform"]"#;
     let m = load_mesh(&write(&dir, "mr.gltf", &textured_json(mat, &img, extra))).unwrap();
     assert!(matches!(m.materials[0], Material::GgxConductor { alpha, .. } if alpha == 0.25));
@@ -309,7 +309,16 @@ fn texture_transform_metallic_roughness_and_normal_maps_are_carried() {
     assert_eq!(r.lookup(Vec2::new(0.25, 0.75)), Vec3::splat(1e-3));
     // Normal map, scale 0.5 on x and y: the red texel (1, 0, 0) encodes n = (1, -1, -1),
     // scaled (0.5, -0.5, -1), normalised, then encoded back as (n + 1) / 2.
-    let n = maps.normal.as_ref().unwrap().lookup(Vec2::new(0.25, 0.75));
+    let normal = maps.normal.as_ref().unwrap();
+    let rotated = crate::texture::UvTransform {
+        rotation: 1.5,
+        ..Default::default()
+    };
+    assert_eq!(normal.transform(), Some(rotated));
+    let n = normal
+        .clone()
+        .with_transform(None)
+        .lookup(Vec2::new(0.25, 0.75));
     let want = (Vec3::new(0.5, -0.5, -1.0).normalize() + Vec3::ONE) * 0.5;
     assert!((n - want).length() < 1e-6, "{n} {want}");
 }
