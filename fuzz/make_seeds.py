@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Write the binary seed inputs of the fuzz targets (fuzz/README.md) into fuzz/seeds/:
 a triangle in OBJ+MTL, PLY (ASCII and both binary byte orders), glTF (external buffer and
-data URI) and GLB; flat, RLE and cross-shaped Radiance HDR files and a float OpenEXR,
+data URI) and GLB, and a textured glTF triangle (PNG base colour, metallic-roughness and normal
+textures with a sampler and KHR_texture_transform, and a camera) with its image in a GLB
+buffer view, a data URI and an external file; flat, RLE and cross-shaped Radiance HDR files and a float OpenEXR,
 each image behind the layout byte the env targets read first. Generated, not committed:
 fuzz/run.sh runs this first. Standard library only."""
 import base64
@@ -10,6 +12,7 @@ import math
 import os
 import struct
 import sys
+import zlib
 
 root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "seeds")
 
@@ -53,6 +56,67 @@ def meshes():
     j += b" " * (-len(j) % 4)
     put("gltf", "tri.glb", b"glTF" + struct.pack("<II", 2, 28 + len(j) + len(buf))
         + struct.pack("<I", len(j)) + b"JSON" + j + struct.pack("<I", len(buf)) + b"BIN\0" + buf)
+    textured(buf)
+
+
+def png_2x2():
+    """A 2 x 2 8-bit RGB PNG: red, green / blue, white."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    rows = b"\0" + bytes([255, 0, 0, 0, 255, 0]) + b"\0" + bytes([0, 0, 255, 255, 255, 255])
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 2, 2, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def textured(tri):
+    """The triangle with UVs and a textured material, its image in three places."""
+    uv = struct.pack("<6f", 0, 0, 1, 0, 0, 1)
+    geo = tri + uv  # positions 0..36, indices 36..42 (+2 padding), UVs 44..68
+    png = png_2x2()
+
+    def doc(buffer_uri, image, buffer_len, views):
+        tex = {"index": 0, "extensions": {"KHR_texture_transform": {
+            "offset": [0.25, 0], "rotation": 0.5, "scale": [2, 1]}}}
+        d = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+             "extensionsUsed": ["KHR_texture_transform"],
+             "nodes": [{"mesh": 0, "name": "tri"},
+                       {"camera": 0, "translation": [0, 0, 3]}],
+             "cameras": [{"type": "perspective",
+                          "perspective": {"yfov": 0.8, "aspectRatio": 1.5, "znear": 0.1}}],
+             "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 2},
+                                         "indices": 1, "material": 0}]}],
+             "materials": [{"name": "painted", "pbrMetallicRoughness": {
+                 "baseColorFactor": [1, 0.8, 0.6, 1], "metallicFactor": 0.2,
+                 "roughnessFactor": 0.7, "baseColorTexture": tex,
+                 "metallicRoughnessTexture": {"index": 0}},
+                 "normalTexture": {"index": 0, "scale": 0.5}}],
+             "textures": [{"source": 0, "sampler": 0}],
+             "samplers": [{"wrapS": 33071, "wrapT": 33648, "magFilter": 9728}],
+             "images": [image],
+             "buffers": [{"byteLength": buffer_len}],
+             "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                             {"buffer": 0, "byteOffset": 36, "byteLength": 6},
+                             {"buffer": 0, "byteOffset": 44, "byteLength": 24}] + views,
+             "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                            "min": [0, 0, 0], "max": [1, 1, 0]},
+                           {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},
+                           {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"}]}
+        if buffer_uri:
+            d["buffers"][0]["uri"] = buffer_uri
+        return json.dumps(d).encode()
+
+    geo_uri = "data:application/octet-stream;base64," + base64.b64encode(geo).decode()
+    put("gltf", "tex_datauri.gltf", doc(geo_uri, {
+        "uri": "data:image/png;base64," + base64.b64encode(png).decode()}, len(geo), []))
+    # The fuzz target's external file `b.bin` holds the PNG.
+    put("gltf", "tex_external.gltf", doc(geo_uri, {"uri": "b.bin"}, len(geo), []) + b"\0" + png)
+    bin_ = geo + png
+    bin_ += b"\0" * (-len(bin_) % 4)
+    j = doc(None, {"bufferView": 3, "mimeType": "image/png"}, len(bin_),
+            [{"buffer": 0, "byteOffset": len(geo), "byteLength": len(png)}])
+    j += b" " * (-len(j) % 4)
+    put("gltf", "tex.glb", b"glTF" + struct.pack("<II", 2, 28 + len(j) + len(bin_))
+        + struct.pack("<I", len(j)) + b"JSON" + j + struct.pack("<I", len(bin_)) + b"BIN\0" + bin_)
 
 
 def rgbe(r, g, b):

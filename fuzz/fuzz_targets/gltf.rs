@@ -1,5 +1,6 @@
 //! glTF: an input starting with `glTF` is a GLB, else the part up to the first NUL is a
-//! `.gltf` JSON and the rest its external buffer `b.bin` (a `uri` of "b.bin" reads it).
+//! `.gltf` JSON and the rest its external buffer or image `b.bin` (a `uri` of "b.bin" reads
+//! it).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 use relight_fuzz::{split_nul, with_files};

@@ -29,7 +29,9 @@ pub use files::{LoadOptions, PathPolicy, DEFAULT_MAX_TRIANGLES};
 pub use image::{read_image, write_exr, write_hdr, write_png_srgb8};
 pub use ply::write_ply;
 
+use crate::camera::Camera;
 use crate::error::SceneError;
+use crate::material::maps::MaterialMaps;
 use crate::material::Material;
 use crate::mesh::TriMesh;
 use crate::meshops;
@@ -42,8 +44,24 @@ pub struct LoadedMesh {
     pub mesh: TriMesh,
     /// Materials; never empty.
     pub materials: Vec<Material>,
+    /// The maps of each material, parallel to `materials` (all empty for OBJ and PLY).
+    pub maps: Vec<MaterialMaps>,
+    /// Named objects: contiguous triangle ranges in load order covering every triangle,
+    /// with unique names (glTF nodes or meshes, OBJ `o` / `g`, else the file stem).
+    pub objects: Vec<MeshObject>,
+    /// The file's own camera, in world space (glTF only).
+    pub camera: Option<Camera>,
     /// Non-fatal problems (missing MTL file, dropped degenerate triangles, ...), one per line.
     pub warnings: Vec<String>,
+}
+
+/// A named part of a loaded mesh.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MeshObject {
+    /// Unique within its mesh.
+    pub name: String,
+    /// Its triangles (indices into `mesh.indices`).
+    pub triangles: std::ops::Range<u32>,
 }
 
 /// Load a mesh with the default [`LoadOptions`] (models confined to their folder,
@@ -78,12 +96,29 @@ pub fn load_mesh_with(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, Sce
 
 /// Common post-processing of every loader (see [`load_mesh`]).
 pub(crate) fn finish_mesh(path: &Path, loaded: &mut LoadedMesh) -> Result<(), SceneError> {
+    // Drop degenerate triangles, carrying each kept triangle's original index through the
+    // material ids so that materials and object ranges follow.
+    let n_tri = loaded.mesh.indices.len();
+    let material_ids =
+        std::mem::replace(&mut loaded.mesh.material_ids, (0..n_tri as u32).collect());
     let dropped = meshops::drop_degenerate(&mut loaded.mesh);
+    let kept = std::mem::take(&mut loaded.mesh.material_ids);
+    loaded.mesh.material_ids = if material_ids.len() == n_tri {
+        kept.iter().map(|&t| material_ids[t as usize]).collect()
+    } else {
+        material_ids
+    };
     if dropped > 0 {
         loaded.warnings.push(format!(
             "{}: dropped {dropped} degenerate triangles",
             path.display()
         ));
+        // An object's new range starts at the number of kept triangles before its old start.
+        let new_start = |old: u32| kept.partition_point(|&t| t < old) as u32;
+        for o in &mut loaded.objects {
+            o.triangles = new_start(o.triangles.start)..new_start(o.triangles.end);
+        }
+        loaded.objects.retain(|o| !o.triangles.is_empty());
     }
     meshops::check_non_empty(&loaded.mesh).map_err(|m| SceneError::invalid_mesh(path, m))?;
     if loaded.mesh.normals.len() != loaded.mesh.positions.len() {
@@ -93,6 +128,15 @@ pub(crate) fn finish_mesh(path: &Path, loaded: &mut LoadedMesh) -> Result<(), Sc
     if loaded.materials.is_empty() {
         loaded.materials.push(Material::default());
     }
+    loaded
+        .maps
+        .resize(loaded.materials.len(), MaterialMaps::default());
+    if loaded.objects.is_empty() {
+        loaded.objects.push(MeshObject {
+            name: file_stem(path),
+            triangles: 0..loaded.mesh.indices.len() as u32,
+        });
+    }
     let n_mat = loaded.materials.len() as u32;
     if let Some(bad) = loaded.mesh.material_ids.iter().find(|&&m| m >= n_mat) {
         return Err(SceneError::invalid_mesh(
@@ -101,6 +145,52 @@ pub(crate) fn finish_mesh(path: &Path, loaded: &mut LoadedMesh) -> Result<(), Sc
         ));
     }
     meshops::validate(&loaded.mesh).map_err(|m| SceneError::invalid_mesh(path, m))
+}
+
+/// The file name of `path` without its extension (`"mesh"` when it has none).
+pub(crate) fn file_stem(path: &Path) -> String {
+    path.file_stem()
+        .and_then(|s| s.to_str())
+        .filter(|s| !s.is_empty())
+        .unwrap_or("mesh")
+        .to_string()
+}
+
+/// `names` made unique: a name met before gets `.1`, `.2`, ... (the first free suffix).
+pub(crate) fn unique_names(names: Vec<String>) -> Vec<String> {
+    let mut seen = std::collections::HashSet::new();
+    names
+        .into_iter()
+        .map(|n| {
+            if seen.insert(n.clone()) {
+                return n;
+            }
+            let unique = (1..)
+                .map(|k| format!("{n}.{k}"))
+                .find(|c| !seen.contains(c))
+                .unwrap_or(n);
+            seen.insert(unique.clone());
+            unique
+        })
+        .collect()
+}
+
+/// Objects from `(name, first triangle)` in order, the last ending at `end`: empty ones
+/// dropped, names made unique.
+pub(crate) fn objects_from_starts(starts: Vec<(String, u32)>, end: u32) -> Vec<MeshObject> {
+    let ends: Vec<u32> = starts.iter().skip(1).map(|s| s.1).chain([end]).collect();
+    let kept: Vec<(String, std::ops::Range<u32>)> = starts
+        .into_iter()
+        .zip(ends)
+        .map(|((n, s), e)| (n, s..e))
+        .filter(|(_, r)| !r.is_empty())
+        .collect();
+    let names = unique_names(kept.iter().map(|k| k.0.clone()).collect());
+    names
+        .into_iter()
+        .zip(kept)
+        .map(|(name, (_, triangles))| MeshObject { name, triangles })
+        .collect()
 }
 
 /// Lower-case extension of `path` ("" if none).

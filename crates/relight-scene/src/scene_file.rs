@@ -332,7 +332,7 @@ impl SceneDesc {
                 max_triangles: limit.saturating_sub(others) as usize,
                 ..*opts
             };
-            let (part, mats) = build_shape(s, &budget).map_err(|e| match e {
+            let (part, mats, loaded_maps) = build_shape(s, &budget).map_err(|e| match e {
                 SceneError::TooManyTriangles {
                     at,
                     count,
@@ -365,6 +365,12 @@ impl SceneDesc {
                     let loaded = MaterialMaps::load(desc, &mats[0], origin, &opts.paths)?;
                     maps.push(Some(std::sync::Arc::new(loaded)));
                 }
+                // The maps a model file brings (glTF textures) when no material overrides its own.
+                None if loaded_maps.len() == mats.len() => maps.extend(
+                    loaded_maps
+                        .into_iter()
+                        .map(|m| (m != MaterialMaps::default()).then(|| std::sync::Arc::new(m))),
+                ),
                 None => maps.extend(mats.iter().map(|_| None)),
             }
             mesh.append(&part, materials.len() as u32);
@@ -642,7 +648,13 @@ impl EnvDesc {
 }
 
 /// Build one shape (already validated); mesh files are loaded with `opts`.
-fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Material>), SceneError> {
+/// The maps are those of a mesh file's own materials (parallel to the materials), empty when
+/// the shape has none or overrides them.
+#[allow(clippy::type_complexity)]
+fn build_shape(
+    s: &ShapeDesc,
+    opts: &LoadOptions,
+) -> Result<(TriMesh, Vec<Material>, Vec<MaterialMaps>), SceneError> {
     let one =
         |m: &Option<MaterialDesc>| vec![m.as_ref().map_or_else(Material::default, |d| d.material)];
     Ok(match s {
@@ -689,18 +701,18 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
                 let bottom = Vec3::new((lo.x + hi.x) * 0.5, lo.y, (lo.z + hi.z) * 0.5);
                 shapes::transform(&mut mesh, scale, Vec3::from(f.base) - bottom * scale);
             }
-            let mats = match material {
+            let (mats, maps) = match material {
                 Some(m) => {
                     mesh.material_ids.iter_mut().for_each(|id| *id = 0);
-                    vec![m.material]
+                    (vec![m.material], Vec::new())
                 }
                 None if loaded.materials.is_empty() => {
                     mesh.material_ids.iter_mut().for_each(|id| *id = 0);
-                    vec![Material::default()]
+                    (vec![Material::default()], Vec::new())
                 }
-                None => loaded.materials,
+                None => (loaded.materials, loaded.maps),
             };
-            (mesh, mats)
+            (mesh, mats, maps)
         }
         ShapeDesc::Sphere {
             center,
@@ -712,6 +724,7 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
             (
                 shapes::uv_sphere(Vec3::from(*center), *radius, r, 2 * r),
                 one(material),
+                Vec::new(),
             )
         }
         ShapeDesc::Plane {
@@ -726,6 +739,7 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
                 divisions.unwrap_or(DEFAULT_DIVISIONS),
             ),
             one(material),
+            Vec::new(),
         ),
         ShapeDesc::Table {
             width,
@@ -734,16 +748,21 @@ fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<(TriMesh, Vec<Materi
             material,
         } => {
             let t = table_thickness(*width, *height);
-            (shapes::table(*width, *depth, *height, t, t), one(material))
+            (
+                shapes::table(*width, *depth, *height, t, t),
+                one(material),
+                Vec::new(),
+            )
         }
         ShapeDesc::Box { min, max, material } => (
             shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), BOX_DIVISIONS),
             one(material),
+            Vec::new(),
         ),
     })
-    .and_then(|(m, mats)| {
+    .and_then(|(m, mats, maps)| {
         meshops::validate(&m).map_err(|e| SceneError::invalid_mesh(shape_origin(s), e))?;
-        Ok((m, mats))
+        Ok((m, mats, maps))
     })
 }
 

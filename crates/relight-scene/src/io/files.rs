@@ -9,8 +9,9 @@
 //!    are resolved against the scene file's folder, and may use `..` or be absolute: the
 //!    example scenes refer to `../../shared/data/...` by design. They are *not* confined.
 //! 2. **A model may only refer to files in its own folder.** References written inside a
-//!    model file — glTF buffer `uri`s, OBJ `mtllib`, and the texture maps a material names in
-//!    a scene or material file (`crate::material::maps`) — are resolved against the
+//!    model file — glTF buffer and image `uri`s, OBJ `mtllib`, and the texture maps a
+//!    material names in a scene or material file (`crate::material::maps`) — are resolved
+//!    against the
 //!    model's folder (the folder of the path the model was opened by) and refused when they
 //!    are absolute, climb out with `..`, or lead out through a symbolic link (checked on the
 //!    canonical path). A model downloaded from the web cannot make relight read

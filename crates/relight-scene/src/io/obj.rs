@@ -1,8 +1,9 @@
 //! Wavefront OBJ (+ MTL) reader.
 //!
 //! Supported: `v`, `vt`, `vn`, `f` (any polygon, fan-triangulated; `v`, `v/vt`, `v//vn`,
-//! `v/vt/vn`; negative indices are relative), `usemtl`, `mtllib`. Ignored: groups, smoothing
-//! groups, lines, points, free-form geometry. One output vertex per distinct
+//! `v/vt/vn`; negative indices are relative), `usemtl`, `mtllib`, and `o` / `g` as object
+//! names ([`LoadedMesh::objects`]: a new object at each `o` or `g` line followed by faces;
+//! faces before any are named after the file stem). Ignored: smoothing groups, lines, points, free-form geometry. One output vertex per distinct
 //! (position, uv, normal) triple used by a face, so unused vertices disappear.
 //! UVs are stored as in the file (OBJ's `v` points up). If any face corner lacks a normal,
 //! all normals are recomputed (angle-weighted).
@@ -39,6 +40,9 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
     let mut materials: Vec<Material> = Vec::new();
     let mut material_index: HashMap<String, u32> = HashMap::new();
     let mut current: Option<u32> = None;
+    let stem = super::file_stem(path);
+    // Objects as (name, first triangle), in order.
+    let mut objects: Vec<(String, u32)> = Vec::new();
     let mut corners: Vec<u32> = Vec::new();
 
     for (ln, raw) in text.lines().enumerate() {
@@ -100,11 +104,27 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
                         m
                     }
                 };
+                if objects.is_empty() {
+                    objects.push((stem.clone(), 0));
+                }
                 let total = (mesh.indices.len() + corners.len() - 2) as u64;
                 opts.check_triangles(total, true, || crate::error::Location::line(path, ln))?;
                 for k in 1..corners.len() - 1 {
                     mesh.indices.push([corners[0], corners[k], corners[k + 1]]);
                     mesh.material_ids.push(mat);
+                }
+            }
+            "o" | "g" => {
+                let name = line[1..].trim();
+                let name = if name.is_empty() {
+                    stem.clone()
+                } else {
+                    name.to_string()
+                };
+                let start = mesh.indices.len() as u32;
+                match objects.last_mut() {
+                    Some((n, s)) if *s == start => *n = name,
+                    _ => objects.push((name, start)),
                 }
             }
             "mtllib" => {
@@ -162,7 +182,12 @@ pub fn read_obj(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
             })?;
         }
     }
+    let end = mesh.indices.len() as u32;
+    let objects = super::objects_from_starts(objects, end);
     Ok(LoadedMesh {
+        maps: Vec::new(),
+        objects,
+        camera: None,
         mesh,
         materials,
         warnings,
@@ -531,5 +556,42 @@ mod tests {
         let m = load_mesh(&p).unwrap();
         // SOURCES.md: welding at 1e-4 leaves 3,241 vertices.
         assert_eq!(crate::meshops::weld(&m.mesh, 1e-4).vertex_count(), 3_241);
+    }
+
+    #[test]
+    fn objects_follow_o_and_g_lines_and_default_to_the_file_stem() {
+        let dir = temp_dir("objnames");
+        // Faces before any name, then `o a`, an empty `g` (the stem), `g a` again, and a
+        // name with no face after it.
+        let text =
+            format!("{QUAD}f 1 2 3\no a\nf 1 3 4\nf 1 2 4\ng\nf 2 3 4\ng a\nf 1 2 3\no unused\n");
+        let m = load_mesh(&write(&dir, "thing.obj", &text)).unwrap();
+        let got: Vec<(&str, std::ops::Range<u32>)> = m
+            .objects
+            .iter()
+            .map(|o| (o.name.as_str(), o.triangles.clone()))
+            .collect();
+        assert_eq!(
+            got,
+            [
+                ("thing", 0..1),
+                ("a", 1..3),
+                ("thing.1", 3..4),
+                ("a.1", 4..5)
+            ]
+        );
+        // Without names: one object named after the file.
+        let m = load_mesh(&write(&dir, "plain.obj", &format!("{QUAD}f 1 2 3 4\n"))).unwrap();
+        assert_eq!(m.objects.len(), 1);
+        assert_eq!(
+            (m.objects[0].name.as_str(), m.objects[0].triangles.clone()),
+            ("plain", 0..2)
+        );
+        assert_eq!(m.maps.len(), m.materials.len());
+        // A degenerate triangle dropped on load shifts the ranges after it.
+        let text = format!("{QUAD}o x\nf 1 2 3\nf 1 1 2\no y\nf 1 3 4\n");
+        let m = load_mesh(&write(&dir, "degen.obj", &text)).unwrap();
+        let got: Vec<_> = m.objects.iter().map(|o| o.triangles.clone()).collect();
+        assert_eq!(got, [0..1, 1..2]);
     }
 }

@@ -269,9 +269,16 @@ pub fn read_ply(path: &Path, opts: &LoadOptions) -> Result<LoadedMesh, SceneErro
         }
     }
     mesh.material_ids = vec![0; mesh.indices.len()];
+    let objects = vec![super::MeshObject {
+        name: super::file_stem(path),
+        triangles: 0..mesh.indices.len() as u32,
+    }];
     Ok(LoadedMesh {
         mesh,
         materials: vec![Default::default()],
+        maps: Vec::new(),
+        objects,
+        camera: None,
         warnings: Vec::new(),
     })
 }
@@ -527,7 +534,17 @@ mod tests {
         let m = tetra();
         let p = dir.join("t.ply");
         write_ply(&p, &m).unwrap();
-        let back = load_mesh(&p).unwrap().mesh;
+        let loaded = load_mesh(&p).unwrap();
+        // One object, named after the file.
+        let n = m.indices.len() as u32;
+        assert_eq!(
+            loaded.objects,
+            [crate::io::MeshObject {
+                name: "t".into(),
+                triangles: 0..n
+            }]
+        );
+        let back = loaded.mesh;
         assert_eq!(back.positions, m.positions);
         assert_eq!(back.normals, m.normals);
         assert_eq!(back.uvs, m.uvs);

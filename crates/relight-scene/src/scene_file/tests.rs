@@ -143,7 +143,7 @@ fn procedural_triangle_counts_match_the_shapes() {
     .unwrap();
     for s in &shapes {
         s.validate().unwrap();
-        let (m, _) = build_shape(s, &LoadOptions::default()).unwrap();
+        let (m, _, _) = build_shape(s, &LoadOptions::default()).unwrap();
         assert_eq!(s.triangle_count(), Some(m.triangle_count() as u64), "{s:?}");
     }
 }

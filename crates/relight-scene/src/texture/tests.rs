@@ -207,3 +207,182 @@ fn corrupted_textures_never_panic() {
         assert!(n > 20);
     }
 }
+
+/// A 4 x 4 texture whose texel `(x, y)` is `(x / 4, y / 4, 0)`.
+fn grid(sampler: Sampler) -> Texture {
+    let texels = (0..16)
+        .map(|i| Vec3::new((i % 4) as f32 / 4.0, (i / 4) as f32 / 4.0, 0.0))
+        .collect();
+    Texture::new(4, 4, texels).unwrap().with_sampler(sampler)
+}
+
+fn at(x: i64, y: i64) -> Vec3 {
+    Vec3::new(x as f32 / 4.0, y as f32 / 4.0, 0.0)
+}
+
+#[test]
+fn texture_transform_composes_as_khr_texture_transform_in_gltf_uv_space() {
+    let nearest = |wrap_t| Sampler {
+        wrap_s: Wrap::Repeat,
+        wrap_t,
+        filter: Filter::Nearest,
+    };
+    let t = UvTransform {
+        offset: Vec2::new(0.25, 0.0),
+        rotation: std::f32::consts::FRAC_PI_2,
+        scale: Vec2::new(2.0, 1.0),
+    };
+    // By hand: mesh (u, v) = (0.1, 0.7) is glTF (s, t) = (0.1, 0.3); scaled (0.2, 0.3);
+    // rotated by 90 degrees (cos 0, sin 1): s = 0.3, t = -0.2; offset: (0.55, -0.2).
+    let st = t.apply(Vec2::new(0.1, 0.3));
+    assert!((st - Vec2::new(0.55, -0.2)).length() < 1e-6, "{st}");
+    let uv = Vec2::new(0.1, 0.7);
+    // Texel x = floor(0.55 * 4) = 2; y = floor(-0.2 * 4) = -1, which repeats to 3, clamps to
+    // 0 and mirrors to 0.
+    for (wrap, y) in [
+        (Wrap::Repeat, 3),
+        (Wrap::ClampToEdge, 0),
+        (Wrap::MirroredRepeat, 0),
+    ] {
+        let tex = grid(nearest(wrap)).with_transform(Some(t));
+        assert_eq!(tex.lookup(uv), at(2, y), "{wrap:?}");
+    }
+    // Without the transform: (0.1, 0.3) reads texel (0, 1).
+    assert_eq!(grid(nearest(Wrap::Repeat)).lookup(uv), at(0, 1));
+    // Offset alone moves the image: +0.25 in s reads one texel further right.
+    let shift = UvTransform {
+        offset: Vec2::new(0.25, 0.0),
+        ..UvTransform::default()
+    };
+    let tex = grid(nearest(Wrap::Repeat)).with_transform(Some(shift));
+    assert_eq!(tex.lookup(uv), at(1, 1));
+}
+
+#[test]
+fn wrap_modes_and_filters_match_their_definitions() {
+    // Index wrapping, against the definitions.
+    for i in -9..13i64 {
+        assert_eq!(Wrap::Repeat.index(i, 4), i.rem_euclid(4));
+        assert_eq!(Wrap::ClampToEdge.index(i, 4), i.clamp(0, 3));
+        let m = i.rem_euclid(8);
+        assert_eq!(
+            Wrap::MirroredRepeat.index(i, 4),
+            if m < 4 { m } else { 7 - m }
+        );
+    }
+    let s = |wrap, filter| Sampler {
+        wrap_s: wrap,
+        wrap_t: wrap,
+        filter,
+    };
+    // Bilinear half-way between the last and first texel columns of row 0 (t = 0.125 is the
+    // row's centre; s = 1.0 is the right edge): repeat blends texels 3 and 0, clamp stays on
+    // texel 3, mirror blends texel 3 with itself.
+    let uv = Vec2::new(1.0, 1.0 - 0.125);
+    let lin = |w| grid(s(w, Filter::Linear)).lookup(uv);
+    assert!((lin(Wrap::Repeat) - (at(3, 0) + at(0, 0)) * 0.5).length() < 1e-6);
+    assert!((lin(Wrap::ClampToEdge) - at(3, 0)).length() < 1e-6);
+    assert!((lin(Wrap::MirroredRepeat) - at(3, 0)).length() < 1e-6);
+    // Nearest reads the texel containing the point, no blend.
+    let uv = Vec2::new(0.49, 1.0 - 0.6);
+    assert_eq!(grid(s(Wrap::Repeat, Filter::Nearest)).lookup(uv), at(1, 2));
+    // Huge and non-finite coordinates neither panic nor leave the image.
+    for w in [Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat] {
+        for f in [Filter::Linear, Filter::Nearest] {
+            let t = grid(s(w, f));
+            for uv in [Vec2::splat(1e30), Vec2::splat(-1e30), Vec2::NAN] {
+                let c = t.lookup(uv);
+                assert!(
+                    c.is_finite() && c.cmple(Vec3::ONE).all(),
+                    "{w:?} {f:?} {uv}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn decode_reads_png_and_refuses_other_formats_by_name() {
+    let dir = temp_dir("tex-decode");
+    let p = dir.join("a.png");
+    write_png(&p, 2, 1, 3, &[255, 0, 0, 0, 0, 255]);
+    let bytes = std::fs::read(&p).unwrap();
+    let t = Texture::decode(&bytes, Encoding::Data).unwrap();
+    assert_eq!(t.texels(), &[Vec3::X, Vec3::Z]);
+    let ktx2 = b"\xABKTX 20\xBB\r\n\x1a\n0000".to_vec();
+    assert!(Texture::decode(&ktx2, Encoding::Colour)
+        .unwrap_err()
+        .contains("KTX2"));
+    let webp = b"RIFF0000WEBPVP8 ".to_vec();
+    assert!(Texture::decode(&webp, Encoding::Colour)
+        .unwrap_err()
+        .contains("WebP"));
+    // A JPEG signature on garbage is a JPEG error, not a panic.
+    let e = Texture::decode(&[0xFF, 0xD8, 0xFF, 0xE0, 0, 3, 1], Encoding::Colour).unwrap_err();
+    assert!(e.contains("JPEG"), "{e}");
+    // Oversized: refused from the header.
+    let big = dir.join("big.png");
+    write_png(
+        &big,
+        MAX_TEXTURE_SIDE as u32 + 1,
+        1,
+        1,
+        &vec![0; MAX_TEXTURE_SIDE + 1],
+    );
+    let e = Texture::decode(&std::fs::read(&big).unwrap(), Encoding::Data).unwrap_err();
+    assert!(e.contains("exceed the texture limit"), "{e}");
+}
+
+/// A 16 x 16 baseline JPEG (quality 100, written by Mitsuba 3's `Bitmap.write` for this test):
+/// red, green / blue, white quadrants of 8 x 8 texels.
+const JPEG_QUADRANTS_HEX: &[&str] = &[
+    "ffd8ffe000104a46494600010100000100010000ffdb0043000101010101010101010101010101010101010101010101",
+    "0101010101010101010101010101010101010101010101010101010101010101010101010101010101ffdb0043010101",
+    "010101010101010101010101010101010101010101010101010101010101010101010101010101010101010101010101",
+    "0101010101010101010101010101ffc00011080010001003011100021101031101ffc4001f0000010501010101010100",
+    "000000000000000102030405060708090a0bffc400b5100002010303020403050504040000017d010203000411051221",
+    "31410613516107227114328191a1082342b1c11552d1f02433627282090a161718191a25262728292a3435363738393a",
+    "434445464748494a535455565758595a636465666768696a737475767778797a838485868788898a9293949596979899",
+    "9aa2a3a4a5a6a7a8a9aab2b3b4b5b6b7b8b9bac2c3c4c5c6c7c8c9cad2d3d4d5d6d7d8d9dae1e2e3e4e5e6e7e8e9eaf1",
+    "f2f3f4f5f6f7f8f9faffc4001f0100030101010101010101010000000000000102030405060708090a0bffc400b51100",
+    "020102040403040705040400010277000102031104052131061241510761711322328108144291a1b1c109233352f015",
+    "6272d10a162434e125f11718191a262728292a35363738393a434445464748494a535455565758595a63646566676869",
+    "6a737475767778797a82838485868788898a92939495969798999aa2a3a4a5a6a7a8a9aab2b3b4b5b6b7b8b9bac2c3c4",
+    "c5c6c7c8c9cad2d3d4d5d6d7d8d9dae2e3e4e5e6e7e8e9eaf2f3f4f5f6f7f8f9faffda000c03010002110311003f00fc",
+    "5faff29cff00bf83fa50aff2dcff00c2bcfe0debff006983feac0ff710aff8073faa0fffd9",
+];
+
+fn from_hex(parts: &[&str]) -> Vec<u8> {
+    let h: String = parts.concat();
+    (0..h.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&h[i..i + 2], 16).unwrap())
+        .collect()
+}
+
+#[test]
+fn jpeg_decodes_to_its_colours() {
+    let bytes = from_hex(JPEG_QUADRANTS_HEX);
+    let t = Texture::decode(&bytes, Encoding::Data).unwrap();
+    assert_eq!((t.width(), t.height()), (16, 16));
+    // Quadrant centres, away from the edges chroma subsampling blurs: JPEG at quality 100
+    // stays within a few of 255 levels of the source there (0.02 is 5 levels).
+    for ((x, y), want) in [
+        ((3, 3), Vec3::X),
+        ((12, 3), Vec3::Y),
+        ((3, 12), Vec3::Z),
+        ((12, 12), Vec3::ONE),
+    ] {
+        let got = t.texel(x, y);
+        assert!((got - want).abs().max_element() < 0.02, "({x}, {y}): {got}");
+    }
+    // Colour decoding applies the sRGB curve to the same samples.
+    let c = Texture::decode(&bytes, Encoding::Colour).unwrap();
+    let (d, s) = (t.texel(12, 12), c.texel(12, 12));
+    assert!((srgb_to_linear(d.x) - s.x).abs() < 1e-6);
+    // Truncated: an error, not a panic.
+    for n in [2, 20, 200, bytes.len() - 2] {
+        let r = std::panic::catch_unwind(|| Texture::decode(&bytes[..n], Encoding::Data));
+        assert!(r.is_ok(), "panic at {n} bytes");
+    }
+}
