@@ -47,52 +47,30 @@ impl GltfPbr {
     }
 }
 
-/// relight's material and maps for a glTF material: GGX with `alpha = roughness^2` clamped
-/// to `[1e-3, 1]` (glTF spec, Appendix B); `metallic >= 0.5` gives [`Material::GgxConductor`]
-/// with `specular = baseColor` (the base colour texture as the specular map), otherwise
-/// [`Material::GgxPlastic`] with `diffuse = baseColor` (the texture as the diffuse map),
-/// `specular = 1`, `ior = 1.5` (glTF's dielectric F0 = 0.04). The metallic-roughness texture
-/// becomes a roughness map of `alpha = (roughness G)^2` (its B, metallic, is not used: the
-/// choice of conductor or plastic is per material); the normal texture becomes the normal
-/// map with its scale applied.
+/// relight's material and maps for a glTF material: [`Material::Gltf`], the specification's
+/// metallic-roughness BRDF (Appendix B; [`crate::material::gltf_pbr`]), with the factors as
+/// they are, the base colour texture as the `diffuse` map (it multiplies the base colour),
+/// the metallic-roughness texture as the `metallic_roughness` map (G multiplies the
+/// roughness, B the metallic) and the normal texture as the `normal` map with its `scale`
+/// ([`crate::material::maps`]). The alpha of `baseColorFactor` is not used (opaque).
 ///
 /// # Errors
-/// A message when a derived map is out of range (cannot happen for a valid [`GltfPbr`]).
+/// None today; the `Result` is kept for the callers' sake (a message when a map cannot be
+/// made).
 pub fn pbr_to_material(p: &GltfPbr) -> Result<(Material, MaterialMaps), String> {
     let c = p.base_color_factor;
-    let base = Vec3::new(c[0], c[1], c[2]);
-    let alpha = (p.roughness * p.roughness).clamp(1e-3, 1.0);
-    let mut maps = MaterialMaps::default();
-    let material = if p.metallic >= 0.5 {
-        maps.specular = p.base_color.clone();
-        Material::GgxConductor {
-            specular: base,
-            alpha,
-        }
-    } else {
-        maps.diffuse = p.base_color.clone();
-        Material::GgxPlastic {
-            diffuse: base,
-            specular: Vec3::ONE,
-            alpha,
-            ior: 1.5,
-        }
+    let material = Material::Gltf {
+        base_color: Vec3::new(c[0], c[1], c[2]),
+        metallic: p.metallic,
+        roughness: p.roughness,
     };
-    if let Some(t) = &p.metallic_roughness {
-        let r = p.roughness;
-        maps.roughness = Some(t.map_texels(|texel| {
-            let a = (r * texel.y).powi(2).clamp(1e-3, 1.0);
-            Vec3::splat(a)
-        })?);
-    }
-    if let Some(t) = &p.normal {
-        let s = p.normal_scale;
-        maps.normal = Some(t.map_texels(|texel| {
-            let n = (texel * 2.0 - Vec3::ONE) * Vec3::new(s, s, 1.0);
-            let n = n.try_normalize().unwrap_or(Vec3::Z);
-            ((n + Vec3::ONE) * 0.5).clamp(Vec3::ZERO, Vec3::ONE)
-        })?);
-    }
+    let maps = MaterialMaps {
+        diffuse: p.base_color.clone(),
+        metallic_roughness: p.metallic_roughness.clone(),
+        normal: p.normal.clone(),
+        normal_scale: p.normal_scale,
+        ..MaterialMaps::default()
+    };
     Ok((material, maps))
 }
 

@@ -67,11 +67,10 @@ fn check_quad(m: &LoadedMesh) {
     assert_eq!(m.mesh.uvs.as_ref().unwrap()[2], Vec2::new(1.0, 0.0));
     assert_eq!(
         m.materials,
-        vec![Material::GgxPlastic {
-            diffuse: Vec3::new(0.5, 0.25, 1.0),
-            specular: Vec3::ONE,
-            alpha: 0.25,
-            ior: 1.5
+        vec![Material::Gltf {
+            base_color: Vec3::new(0.5, 0.25, 1.0),
+            metallic: 0.0,
+            roughness: 0.5,
         }]
     );
 }
