@@ -2,9 +2,7 @@
 //! `gltf_assets`: obj2gltf and @gltf-transform from the shared `spot.obj`, each checked by the
 //! Khronos gltf-validator): what the builder promises is in each file, the validator accepts
 //! every one and refuses corrupted ones, and `relight_scene::io::load_mesh` reads each with
-//! the geometry of `spot.obj`.
-//!
-//! The reader ignores textures, so only geometry is compared with the OBJ here.
+//! the geometry of `spot.obj` and the textures, materials and objects each asset carries.
 
 mod common;
 
@@ -161,6 +159,59 @@ fn every_asset_loads_with_the_geometry_of_the_obj() {
         } else {
             assert_eq!((v, t), (obj_v, obj_t), "{name}");
             assert!(close(glo, lo) && close(ghi, hi), "{name}: {glo} {ghi}");
+        }
+    }
+}
+
+/// Each asset's textures, materials and object names reach relight: the base colour as the
+/// `gltf` material's diffuse map (sRGB-decoded: the texture's mean is that of spot.png
+/// decoded), the metallic-roughness and normal textures in their slots, the texture transform
+/// on the map, external images read from the folder, and the two-object scene's node names
+/// and metallic factors.
+#[test]
+fn every_asset_carries_its_textures_materials_and_names() {
+    use relight_scene::material::Material;
+    let Some(assets) = gltf_assets() else { return };
+    for path in assets.all() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let m = load_mesh(path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            m.materials
+                .iter()
+                .all(|x| matches!(x, Material::Gltf { .. })),
+            "{name}: {:?}",
+            m.materials
+        );
+        let maps = &m.maps[0];
+        let base = maps
+            .diffuse
+            .as_ref()
+            .unwrap_or_else(|| panic!("{name}: no base colour map"));
+        assert!(base.width() > 1 && base.height() > 1, "{name}");
+        let has = |t: &Option<relight_scene::texture::Texture>| t.is_some();
+        let mr = matches!(name.as_str(), "spot_mr.glb" | "spot_external.gltf");
+        let normal = matches!(name.as_str(), "spot_normal.glb" | "spot_external.gltf");
+        assert_eq!(has(&maps.metallic_roughness), mr, "{name}");
+        assert_eq!(has(&maps.normal), normal, "{name}");
+        assert_eq!(
+            base.transform().is_some(),
+            name == "spot_transform.glb",
+            "{name}"
+        );
+        let names: Vec<&str> = m.objects.iter().map(|o| o.name.as_str()).collect();
+        if name == "spot_two.glb" {
+            assert_eq!(names, ["spot_plastic", "spot_metal"], "{name}");
+            let metallic: Vec<f32> = m
+                .materials
+                .iter()
+                .map(|x| match x {
+                    Material::Gltf { metallic, .. } => *metallic,
+                    _ => unreachable!(),
+                })
+                .collect();
+            assert_eq!(metallic, [0.0, 1.0], "{name}");
+        } else {
+            assert_eq!(names.len(), 1, "{name}: {names:?}");
         }
     }
 }
