@@ -210,6 +210,25 @@ pub(crate) use atomic::write_atomic;
 
 #[cfg(test)]
 pub(crate) mod test_util {
+    /// Standard base64 with padding (for data URIs in test glTF files).
+    pub(crate) fn base64_encode(b: &[u8]) -> String {
+        const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut s = String::new();
+        for c in b.chunks(3) {
+            let n = (c[0] as u32) << 16
+                | (*c.get(1).unwrap_or(&0) as u32) << 8
+                | *c.get(2).unwrap_or(&0) as u32;
+            for k in 0..4 {
+                s.push(if k <= c.len() {
+                    T[(n >> (18 - 6 * k) & 63) as usize] as char
+                } else {
+                    '='
+                });
+            }
+        }
+        s
+    }
+
     use std::path::PathBuf;
     use std::sync::atomic::{AtomicUsize, Ordering};
 

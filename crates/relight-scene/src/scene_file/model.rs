@@ -101,9 +101,12 @@ impl SceneDesc {
         if ground {
             shapes.push(ground_plane(min, max));
         }
-        let camera = Camera::framing(min, max);
+        let (camera, which) = match loaded.camera {
+            Some(c) => (c, "the model's own (its first glTF camera)"),
+            None => (Camera::framing(min, max), "framed on the model's bounds"),
+        };
         let choices = ModelChoices {
-            camera: "framed on the model's bounds",
+            camera: which,
             environment: if environment.is_some() {
                 "as given"
             } else {
@@ -161,6 +164,40 @@ mod tests {
         assert_eq!(hi.y, 3.0);
         let r = 0.5 * (max - min).length();
         assert!((hi.x - lo.x - GROUND_SIZE_RADII * r).abs() < 1e-4);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A glTF with a camera keeps it (the reader's conversion is tested in io/gltf).
+    #[test]
+    fn a_gltf_camera_is_the_scenes_camera() {
+        let dir = std::env::temp_dir().join(format!("relight-model-c-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // One triangle (positions as base64 f32) seen by a camera at z = 5.
+        let mut bytes = Vec::new();
+        for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        let uri = crate::io::test_util::base64_encode(&bytes);
+        let json = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0,
+            "scenes": [{{"nodes": [0, 1]}}],
+            "nodes": [{{"mesh": 0}}, {{"camera": 0, "translation": [0, 0, 5]}}],
+            "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.6, "aspectRatio": 1.5, "znear": 0.1}}}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+            "buffers": [{{"byteLength": 36, "uri": "data:application/octet-stream;base64,{uri}"}}],
+            "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                            "min": [0, 0, 0], "max": [1, 1, 0]}}]}}"#
+        );
+        let p = dir.join("cam.gltf");
+        std::fs::write(&p, json).unwrap();
+        let (d, why) = SceneDesc::for_model(&p, None, false, &LoadOptions::default()).unwrap();
+        assert!(why.camera.contains("own"), "{why:?}");
+        assert_eq!(d.camera.origin, [0.0, 0.0, 5.0]);
+        assert_ne!(
+            d.camera,
+            Camera::framing(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0))
+        );
         std::fs::remove_dir_all(&dir).ok();
     }
 

@@ -3,26 +3,8 @@
 use super::buffers::base64_decode;
 use super::*;
 use crate::io::files;
-use crate::io::{load_mesh, test_util::temp_dir};
+use crate::io::{load_mesh, test_util::base64_encode, test_util::temp_dir};
 use std::path::PathBuf;
-
-fn base64_encode(b: &[u8]) -> String {
-    const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in b.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            s.push(if k <= c.len() {
-                T[(n >> (18 - 6 * k) & 63) as usize] as char
-            } else {
-                '='
-            });
-        }
-    }
-    s
-}
 
 /// A unit quad in the z = 0 plane: 4 positions, 4 UVs, 6 u16 indices (no normals).
 fn quad_bin() -> Vec<u8> {
