@@ -123,9 +123,14 @@ struct BenchArgs {
     quick: bool,
     /// Run only these sections (comma-separated): rays, sh-bake, shard, relight, projection,
     /// hybrid, prefilter, sg-fit, sg-bake, sg-frame, cuts-bake, cuts-frame, cuts-local, vmf-fit, vmf-bake,
-    /// gpu (a build with `--features gpu`: GPU frames at 1280 x 720 against the CPU frames).
+    /// gltf (needs --gltf), gpu (a build with `--features gpu`: GPU frames at 1280 x 720
+    /// against the CPU frames).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// A textured GLB for the gltf section, compared with the OBJ of the same stem beside
+    /// it (the test assets' spot.glb and spot.obj, under target/relight-gltf-assets/).
+    #[arg(long)]
+    gltf: Option<PathBuf>,
 }
 
 /// Restore the default SIGPIPE action, so `relight ... | head` ends quietly like other Unix
@@ -205,6 +210,7 @@ fn run(cli: Cli, m: &clap::ArgMatches) -> Result<()> {
                 relight_vertices: a.relight_vertices,
                 quick: a.quick,
                 only: a.only,
+                gltf: a.gltf,
             })?;
             out.line(r.markdown());
             out.summary(serde_json::to_value(&r)?);

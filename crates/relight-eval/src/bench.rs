@@ -37,7 +37,9 @@
 //! 13. [`vmf_bake`]: the vMF teapot (exponent 64) baked with adaptive angular and spatial
 //!     refinement against a fixed level-1 bake of the same mesh, then its 512 x 512 CPU frame
 //!     against `sg`'s and SH's frames of the same mesh and camera.
-//! 14. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 (cuts: 320 x 180) against the CPU
+//! 14. [`gltf`]: a textured GLB (`--gltf`) against its OBJ twin: loading, and the whole
+//!     `relight bake MODEL --method cuts` to a bundle.
+//! 15. `gpu` (feature `gpu`): frames of the GPU renderer at 1280 x 720 (cuts: 320 x 180) against the CPU
 //!     frames, the CPU-side work per frame against 2 ms, per-frame counts.
 //!
 //! Timing helpers shared by the sections: [`median`], `median_ms` (median wall time of
@@ -47,6 +49,7 @@
 pub mod cuts_bake;
 pub mod cuts_frame;
 pub mod cuts_local;
+pub mod gltf;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod hybrid;
@@ -89,6 +92,9 @@ pub struct BenchOptions {
     pub quick: bool,
     /// Run only these sections ([`SECTIONS`]); empty: all.
     pub only: Vec<String>,
+    /// The GLB of the "gltf" section (its OBJ twin beside it); `None`: the section is
+    /// skipped when every section runs, refused when asked for by name.
+    pub gltf: Option<PathBuf>,
 }
 
 /// One table of the report.
@@ -229,7 +235,7 @@ fn load_mesh(path: &Path) -> Result<TriMesh> {
 }
 
 /// The sections' names, in the order of the report (`relight bench --only NAME`).
-pub const SECTIONS: [&str; 16] = [
+pub const SECTIONS: [&str; 17] = [
     "rays",
     "sh-bake",
     "shard",
@@ -245,6 +251,7 @@ pub const SECTIONS: [&str; 16] = [
     "cuts-local",
     "vmf-fit",
     "vmf-bake",
+    "gltf",
     "gpu",
 ];
 
@@ -341,6 +348,13 @@ pub fn run(a: &BenchOptions) -> Result<BenchReport> {
             .into_iter()
             .for_each(&mut push);
     }
+    if on("gltf") {
+        if a.gltf.is_some() || !a.only.is_empty() {
+            push(gltf::section(&a.gltf, a.quick)?);
+        } else {
+            eprintln!("bench: section gltf skipped (no --gltf FILE.glb)");
+        }
+    }
     if on("gpu") {
         #[cfg(feature = "gpu")]
         gpu::sections(a.quick)?.into_iter().for_each(&mut push);
@@ -403,6 +417,7 @@ mod tests {
             relight_vertices: 10,
             quick: true,
             only: vec![],
+            gltf: None,
         };
         let e = run(&o).unwrap_err().to_string();
         assert!(e.contains("--rays"), "{e}");
