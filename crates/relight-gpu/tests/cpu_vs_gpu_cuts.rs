@@ -320,3 +320,49 @@ fn unsupported_materials_are_refused_by_name() {
         "{e}"
     );
 }
+
+/// A bundle whose material has a texture map is refused by the GPU frame, naming the
+/// material and the map with its non-default sampler and texture transform (which the GPU
+/// does not read).
+#[test]
+fn textured_materials_are_refused_with_their_sampling() {
+    use relight_scene::material::maps::{MaterialMaps, SceneMaps};
+    use relight_scene::texture::{Filter, Sampler, Texture, UvTransform, Wrap};
+    use std::sync::Arc;
+    let Some(gpu) = gpu() else { return };
+    let (mut b, _) = bake(LAMBERT);
+    let Baked::Cuts(c) = &mut b else {
+        unreachable!("a cuts bake")
+    };
+    let n = c.scene.mesh.vertex_count();
+    c.scene.mesh.uvs = Some(vec![glam::Vec2::splat(0.5); n]);
+    let tex = Texture::constant(Vec3::splat(0.5))
+        .expect("texture")
+        .with_sampler(Sampler {
+            wrap_s: Wrap::ClampToEdge,
+            wrap_t: Wrap::Repeat,
+            filter: Filter::Nearest,
+        })
+        .with_transform(Some(UvTransform {
+            rotation: 0.5,
+            ..UvTransform::default()
+        }));
+    let maps = MaterialMaps {
+        diffuse: Some(tex),
+        ..MaterialMaps::default()
+    };
+    let per = vec![Some(Arc::new(maps)), None];
+    c.scene.maps = SceneMaps::new(&c.scene.mesh, per).expect("maps");
+    let e = frame_of(&gpu, &b, &FrameSettings::Cuts(CutsFrameSettings::default()))
+        .err()
+        .expect("a textured material is refused")
+        .to_string();
+    assert!(
+        e.contains("material 0 (lambert)")
+            && e.contains(
+                "diffuse (wrap clamp-to-edge x repeat, nearest filter, KHR_texture_transform)"
+            )
+            && e.contains("not supported by --method cuts --gpu"),
+        "{e}"
+    );
+}
