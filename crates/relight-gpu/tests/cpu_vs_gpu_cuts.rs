@@ -219,17 +219,17 @@ fn cuts_frame_lambert_matches_the_per_sample_merge() {
     assert!(compare(&c, &g).is_err());
 }
 
-#[test]
-fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
+/// The GPU frame of `material` against the CPU frame, with two negative controls that must
+/// fail the comparison: the light cut of another rotation, and the frame without the cluster
+/// spread (the five-point rule must be what the GPU evaluates).
+fn matches_with_controls(material: &str) {
     let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(CONDUCTOR);
+    let (b, scene) = bake(material);
     let s = CutsFrameSettings::default();
     assert!(s.cluster_spread, "the CPU frame's default");
     let c = cpu(&b, &s, &scene);
     let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
     compare(&c, &g).unwrap();
-    // Negative controls: the light cut of another rotation, and the conductor without the
-    // cluster spread (the five-point rule must be what the GPU evaluates).
     let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
     assert!(compare(&c, &g).is_err());
     let off = CutsFrameSettings {
@@ -241,46 +241,21 @@ fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
 }
 
 #[test]
+fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
+    matches_with_controls(CONDUCTOR);
+}
+
+#[test]
 fn cuts_frame_ggx_plastic_matches_the_per_sample_merge() {
-    let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(PLASTIC);
-    let s = CutsFrameSettings::default();
-    let c = cpu(&b, &s, &scene);
-    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
-    compare(&c, &g).unwrap();
-    // Negative controls: another rotation's light cut; the spread off.
-    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
-    assert!(compare(&c, &g).is_err());
-    let off = CutsFrameSettings {
-        cluster_spread: false,
-        ..s
-    };
-    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
-    assert!(compare(&c, &g).is_err());
+    matches_with_controls(PLASTIC);
 }
 
 /// The glTF BRDF (Appendix B, `gltf_pbr`) ported to WGSL, against the CPU frame.
 #[test]
 fn cuts_frame_gltf_matches_the_per_sample_merge() {
-    let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(GLTF);
-    let s = CutsFrameSettings::default();
-    let c = cpu(&b, &s, &scene);
-    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
-    compare(&c, &g).unwrap();
-    // Negative controls: another rotation's light cut; the spread off.
-    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
-    assert!(compare(&c, &g).is_err());
-    let off = CutsFrameSettings {
-        cluster_spread: false,
-        ..s
-    };
-    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
-    assert!(compare(&c, &g).is_err());
+    matches_with_controls(GLTF);
 }
 
-/// Cuts holding the cosine: the BRDF without its cosine, directions below the horizon lifted
-/// onto it (`cluster_brdf`), on the GPU as on the CPU.
 #[test]
 fn cuts_frame_over_visibility_cosine_cuts_matches() {
     let Some(gpu) = gpu() else { return };
