@@ -21,9 +21,10 @@ format). The Mitsuba scene built from it:
   * one `ply` shape per material, `face_normals = False` (interpolated vertex normals), with
     `diffuse`, `roughconductor` (ggx, material "none", visible-normal sampling) or
     `roughplastic` (ggx, linear) BSDFs, possibly wrapped in a `normalmap` BSDF;
-  * a parameter given as `{"bitmap": file}` is a `bitmap` texture of that linear EXR (`raw`,
-    bilinear, repeat); with `"channel": c` only channel `c` is kept (a one-channel bitmap, for
-    a scalar such as `alpha`). The PLY's `v` and the EXR's rows are already in Mitsuba's
+  * a parameter given as `{"bitmap": file}` is a `bitmap` texture of that linear EXR (`raw`;
+    `wrap_mode` and `filter_type` from the entry, repeat and bilinear when absent; `to_uv`
+    from the entry's 3 x 3 affine matrix rows when present); with `"channel": c` only channel
+    `c` is kept (a one-channel bitmap, for a scalar such as `alpha`). The PLY's `v` and the EXR's rows are already in Mitsuba's
     placement (`relight_render::mitsuba`, "Texture and normal maps");
   * a `gltf` BSDF (`base_color`, `metallic`, `roughness`: the glTF 2.0 metallic-roughness
     BRDF, Appendix B) is, with `--gltf-as plugin` (the default), the `gltf_pbr` plugin of
@@ -78,7 +79,17 @@ def bitmap(entry, base_dir):
     """A `bitmap` texture dictionary of a `{"bitmap": file[, "channel": c]}` entry (a channel
     is read with Mitsuba, whose variant must be set)."""
     path = os.path.join(base_dir, entry["bitmap"])
-    d = {"type": "bitmap", "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+    d = {
+        "type": "bitmap",
+        "raw": True,
+        "filter_type": entry.get("filter_type", "bilinear"),
+        "wrap_mode": entry.get("wrap_mode", "repeat"),
+    }
+    if "to_uv" in entry:
+        import mitsuba as mi
+
+        m = [[float(x) for x in row] for row in entry["to_uv"]]
+        d["to_uv"] = mi.ScalarTransform3f(mi.ScalarMatrix3f(m))
     if "channel" in entry:
         import mitsuba as mi
         import numpy as np

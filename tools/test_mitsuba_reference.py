@@ -119,6 +119,26 @@ class MitsubaTests(unittest.TestCase):
                 self.assertAlmostEqual(tex.eval_1(si), want, places=6)
             mi.load_dict(c)  # roughconductor accepts an alpha texture
 
+    def test_bitmap_sampling_and_to_uv(self):
+        ref.pick_variant("scalar_rgb")
+        with tempfile.TemporaryDirectory() as tmp:
+            # 2 x 1 texels: red 0.2 then 0.6.
+            mi.Bitmap(mi.TensorXf([[[0.2, 0.2, 0.2], [0.6, 0.6, 0.6]]])).write(os.path.join(tmp, "d.exr"))
+            entry = {
+                "bitmap": "d.exr",
+                "wrap_mode": "clamp",
+                "filter_type": "nearest",
+                # u' = 0.5 u + 0.5: every u in [0, 1) reads the second texel, once clamped.
+                "to_uv": [[0.5, 0.0, 0.5], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            }
+            d = ref.bsdf_dict({"type": "diffuse", "reflectance": entry}, tmp)["reflectance"]
+            self.assertEqual((d["wrap_mode"], d["filter_type"]), ("clamp", "nearest"))
+            tex = mi.load_dict(d)
+            si = mi.SurfaceInteraction3f()
+            for u, want in [(0.1, 0.6), (0.9, 0.6), (1.8, 0.6), (-0.9, 0.2)]:
+                si.uv = mi.Point2f(u, 0.5)
+                self.assertAlmostEqual(tex.eval(si)[0], want, places=6)
+
     def test_furnace_render(self):
         a, L = 0.6, 2.0
         with tempfile.TemporaryDirectory() as tmp:

@@ -23,7 +23,7 @@
 
 mod common;
 
-use common::{relight, stderr, stdout, tmpdir};
+use common::{read_png, relight, stderr, stdout, tmpdir};
 use relight_method::choose::choose_bake_method;
 use relight_method::MethodKind;
 use relight_render::raster::{gbuffer, RasterOptions};
@@ -148,19 +148,6 @@ fn per_object(scene: &relight_scene::scene::Scene, a: &Image, b: &Image) -> Vec<
     }
     acc.into_iter()
         .map(|(n, x, y)| (n, x / n.max(1) as f64, y / n.max(1) as f64))
-        .collect()
-}
-
-/// The 8-bit pixels of a PNG relight wrote.
-fn read_png(path: &Path) -> Vec<[u8; 3]> {
-    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size().unwrap()];
-    let info = r.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
-    buf[..info.buffer_size()]
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
         .collect()
 }
 

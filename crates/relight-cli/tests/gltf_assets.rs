@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::tmpdir;
+use common::{read_png, tmpdir};
 use relight_scene::io::load_mesh;
 use relight_testdata::{gltf_assets, validate_gltf};
 use serde_json::Value;
@@ -258,19 +258,6 @@ fn the_validator_refuses_corrupted_files() {
         assert!(msg.contains(code), "{name}: {msg}");
     }
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// The 8-bit RGB texels of a PNG the builder wrote.
-fn read_png(path: &Path) -> Vec<[u8; 3]> {
-    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut r = dec.read_info().unwrap();
-    let mut buf = vec![0; r.output_buffer_size().unwrap()];
-    let info = r.next_frame(&mut buf).unwrap();
-    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
-    buf[..info.buffer_size()]
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect()
 }
 
 #[test]

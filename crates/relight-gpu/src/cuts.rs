@@ -7,7 +7,8 @@
 //! of sec. 3.2 and the sum of Eq. 5 (sec. 4.2; `cuts.wgsl`), then the resolve pass.
 //!
 //! Refused (a [`GpuError::Unsupported`] naming what): bakes of surface samples (local
-//! lights), texture and normal maps, and materials other than Lambert, the GGX conductor and
+//! lights), texture and normal maps (named with their samplers and texture transforms,
+//! which the GPU frame does not read either), and materials other than Lambert, the GGX conductor and
 //! the GGX plastic.
 
 use crate::layout::{
@@ -21,9 +22,11 @@ use relight_bake::cuts::visibility::CutFunction;
 use relight_method::cuts::{CutsBaked, CutsFrameSettings, EnvLightCut};
 use relight_method::{FrameOptions, MethodKind};
 use relight_scene::camera::Camera;
+use relight_scene::material::maps::{MaterialMaps, MAP_KINDS};
 use relight_scene::material::microfacet::PlasticTables;
 use relight_scene::material::Material;
 use relight_scene::scene::Environment;
+use relight_scene::texture::{Filter, UvTransform, Wrap};
 use std::time::Instant;
 
 /// The `cuts` frame on the GPU.
@@ -104,6 +107,41 @@ fn gpu_material(
 
 /// The vertex cuts as one `u32` array (offsets, key pairs, packed means, then the triangles'
 /// material indices) and the three bases.
+/// The maps of a material for a refusal: each kind, with its sampler and texture transform
+/// when they are not the defaults (e.g. `maps diffuse (wrap clamp-to-edge x repeat, nearest
+/// filter, KHR_texture_transform)`).
+fn describe_maps(maps: &MaterialMaps) -> String {
+    let wrap = |w: Wrap| match w {
+        Wrap::Repeat => "repeat",
+        Wrap::ClampToEdge => "clamp-to-edge",
+        Wrap::MirroredRepeat => "mirrored-repeat",
+    };
+    let each: Vec<String> = MAP_KINDS
+        .iter()
+        .zip(maps.textures())
+        .filter_map(|(kind, t)| {
+            let t = t.as_ref()?;
+            let s = t.sampler();
+            let mut what = Vec::new();
+            if (s.wrap_s, s.wrap_t) != (Wrap::Repeat, Wrap::Repeat) {
+                what.push(format!("wrap {} x {}", wrap(s.wrap_s), wrap(s.wrap_t)));
+            }
+            if s.filter == Filter::Nearest {
+                what.push("nearest filter".into());
+            }
+            if t.transform().is_some_and(|t| t != UvTransform::default()) {
+                what.push("KHR_texture_transform".into());
+            }
+            Some(if what.is_empty() {
+                kind.to_string()
+            } else {
+                format!("{kind} ({})", what.join(", "))
+            })
+        })
+        .collect();
+    format!("maps {}", each.join(", "))
+}
+
 fn pack_cuts(baked: &CutsBaked, max_bytes: u64) -> Result<(Vec<u32>, [u32; 3]), GpuError> {
     let c = &baked.bake.cuts;
     let mesh = &baked.scene.mesh;
@@ -160,10 +198,14 @@ impl<'a> CutsGpuFrame<'a> {
             }
             Some(o) => vec![o.desc.material; scene.materials.len().max(1)],
             None => {
-                if (0..scene.materials.len() as u32).any(|id| scene.maps.of(id).is_some()) {
-                    return Err(GpuError::Unsupported(
-                        "textured materials (texture or normal maps) are not supported by --method cuts --gpu yet (render it without --gpu)".into(),
-                    ));
+                if let Some((id, maps)) = (0..scene.materials.len() as u32)
+                    .find_map(|id| scene.maps.of(id).map(|m| (id, m)))
+                {
+                    return Err(GpuError::Unsupported(format!(
+                        "material {id} ({}) has {}: textured materials are not supported by --method cuts --gpu yet (render it without --gpu)",
+                        scene.materials[id as usize].kind_name(),
+                        describe_maps(maps)
+                    )));
                 }
                 scene.materials.clone()
             }

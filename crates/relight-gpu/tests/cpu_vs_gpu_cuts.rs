@@ -219,17 +219,17 @@ fn cuts_frame_lambert_matches_the_per_sample_merge() {
     assert!(compare(&c, &g).is_err());
 }
 
-#[test]
-fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
+/// The GPU frame of `material` against the CPU frame, with two negative controls that must
+/// fail the comparison: the light cut of another rotation, and the frame without the cluster
+/// spread (the five-point rule must be what the GPU evaluates).
+fn matches_with_controls(material: &str) {
     let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(CONDUCTOR);
+    let (b, scene) = bake(material);
     let s = CutsFrameSettings::default();
     assert!(s.cluster_spread, "the CPU frame's default");
     let c = cpu(&b, &s, &scene);
     let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
     compare(&c, &g).unwrap();
-    // Negative controls: the light cut of another rotation, and the conductor without the
-    // cluster spread (the five-point rule must be what the GPU evaluates).
     let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
     assert!(compare(&c, &g).is_err());
     let off = CutsFrameSettings {
@@ -241,46 +241,21 @@ fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
 }
 
 #[test]
+fn cuts_frame_ggx_conductor_matches_the_per_sample_merge() {
+    matches_with_controls(CONDUCTOR);
+}
+
+#[test]
 fn cuts_frame_ggx_plastic_matches_the_per_sample_merge() {
-    let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(PLASTIC);
-    let s = CutsFrameSettings::default();
-    let c = cpu(&b, &s, &scene);
-    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
-    compare(&c, &g).unwrap();
-    // Negative controls: another rotation's light cut; the spread off.
-    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
-    assert!(compare(&c, &g).is_err());
-    let off = CutsFrameSettings {
-        cluster_spread: false,
-        ..s
-    };
-    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
-    assert!(compare(&c, &g).is_err());
+    matches_with_controls(PLASTIC);
 }
 
 /// The glTF BRDF (Appendix B, `gltf_pbr`) ported to WGSL, against the CPU frame.
 #[test]
 fn cuts_frame_gltf_matches_the_per_sample_merge() {
-    let Some(gpu) = gpu() else { return };
-    let (b, scene) = bake(GLTF);
-    let s = CutsFrameSettings::default();
-    let c = cpu(&b, &s, &scene);
-    let g = gpu_render(&gpu, &b, &s, &scene.env, &scene);
-    compare(&c, &g).unwrap();
-    // Negative controls: another rotation's light cut; the spread off.
-    let g = gpu_render(&gpu, &b, &s, &rotated(&scene.env), &scene);
-    assert!(compare(&c, &g).is_err());
-    let off = CutsFrameSettings {
-        cluster_spread: false,
-        ..s
-    };
-    let g = gpu_render(&gpu, &b, &off, &scene.env, &scene);
-    assert!(compare(&c, &g).is_err());
+    matches_with_controls(GLTF);
 }
 
-/// Cuts holding the cosine: the BRDF without its cosine, directions below the horizon lifted
-/// onto it (`cluster_brdf`), on the GPU as on the CPU.
 #[test]
 fn cuts_frame_over_visibility_cosine_cuts_matches() {
     let Some(gpu) = gpu() else { return };
@@ -317,6 +292,52 @@ fn unsupported_materials_are_refused_by_name() {
         .to_string();
     assert!(
         e.contains("BlinnPhong") && e.contains("not supported on the GPU"),
+        "{e}"
+    );
+}
+
+/// A bundle whose material has a texture map is refused by the GPU frame, naming the
+/// material and the map with its non-default sampler and texture transform (which the GPU
+/// does not read).
+#[test]
+fn textured_materials_are_refused_with_their_sampling() {
+    use relight_scene::material::maps::{MaterialMaps, SceneMaps};
+    use relight_scene::texture::{Filter, Sampler, Texture, UvTransform, Wrap};
+    use std::sync::Arc;
+    let Some(gpu) = gpu() else { return };
+    let (mut b, _) = bake(LAMBERT);
+    let Baked::Cuts(c) = &mut b else {
+        unreachable!("a cuts bake")
+    };
+    let n = c.scene.mesh.vertex_count();
+    c.scene.mesh.uvs = Some(vec![glam::Vec2::splat(0.5); n]);
+    let tex = Texture::constant(Vec3::splat(0.5))
+        .expect("texture")
+        .with_sampler(Sampler {
+            wrap_s: Wrap::ClampToEdge,
+            wrap_t: Wrap::Repeat,
+            filter: Filter::Nearest,
+        })
+        .with_transform(Some(UvTransform {
+            rotation: 0.5,
+            ..UvTransform::default()
+        }));
+    let maps = MaterialMaps {
+        diffuse: Some(tex),
+        ..MaterialMaps::default()
+    };
+    let per = vec![Some(Arc::new(maps)), None];
+    c.scene.maps = SceneMaps::new(&c.scene.mesh, per).expect("maps");
+    let e = frame_of(&gpu, &b, &FrameSettings::Cuts(CutsFrameSettings::default()))
+        .err()
+        .expect("a textured material is refused")
+        .to_string();
+    assert!(
+        e.contains("material 0 (lambert)")
+            && e.contains(
+                "diffuse (wrap clamp-to-edge x repeat, nearest filter, KHR_texture_transform)"
+            )
+            && e.contains("not supported by --method cuts --gpu"),
         "{e}"
     );
 }

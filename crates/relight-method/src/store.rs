@@ -15,7 +15,12 @@
 //! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
 //! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32), and the materials' texture
 //! and normal maps, `map_<material>_<kind> [H, W, 3]` (F32 linear texels, `kind` one of
-//! `diffuse`, `specular`, `roughness`, `normal`; see `relight_scene::material::maps`). Each method adds its own,
+//! `diffuse`, `specular`, `roughness`, `normal`; see `relight_scene::material::maps`), each with
+//! its sampler and `KHR_texture_transform` in `map_<material>_<kind>_sampling [8]` (F32:
+//! `wrap_s, wrap_t, filter, offset.x, offset.y, rotation, scale.x, scale.y`, wrap codes
+//! [`WRAP_CODES`], filter codes [`FILTER_CODES`]) written only when they are not the
+//! defaults (repeat, linear, no transform; an identity transform counts as none), so a bundle
+//! of plain textures has no such tensor. Each method adds its own,
 //! prefixed by nothing for `sh` (`albedo`, `transfer`) and by its name for the others (`sg_`,
 //! `cuts_`, `vmf_`).
 
@@ -26,7 +31,7 @@ use relight_scene::material::maps::{MaterialMaps, SceneMaps, MAP_KINDS};
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
 use relight_scene::scene_file::SceneDesc;
-use relight_scene::texture::{Texture, MAX_TEXTURE_PIXELS};
+use relight_scene::texture::{Filter, Sampler, Texture, UvTransform, Wrap, MAX_TEXTURE_PIXELS};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 use std::ops::Range;
 use std::path::Path;
@@ -182,6 +187,12 @@ impl BakedScene {
                         &format!("map_{i}_{kind}"),
                         Tensor::from_f32(vec![tex.height(), tex.width(), 3], &flat3(tex.texels())),
                     );
+                    if let Some(s) = encode_sampling(tex) {
+                        b.insert(
+                            &format!("map_{i}_{kind}_{SAMPLING}"),
+                            Tensor::from_f32(vec![8], &s),
+                        );
+                    }
                 }
             }
             if maps.normal_scale != 1.0 {
@@ -195,16 +206,34 @@ impl BakedScene {
     }
 
     /// The maps of the tensors `map_<material>_<kind>` (`[H, W, 3]` F32), each checked as a
-    /// texture is when read from a file, and `map_<material>_normal_scale` (`[1]` F32, finite;
-    /// 1 when absent); a map of a material that does not exist, of an unknown kind, or on a
-    /// mesh without texture coordinates is refused by name.
+    /// texture is when read from a file, with its `map_<material>_<kind>_sampling` (`[8]` F32,
+    /// module docs; defaults when absent), and `map_<material>_normal_scale` (`[1]` F32,
+    /// finite; 1 when absent); a map of a material that does not exist, of an unknown kind, on
+    /// a mesh without texture coordinates, or a sampling tensor without its map or with an
+    /// unknown code is refused by name.
     fn load_maps(
         r: &TensorReader,
         mesh: &TriMesh,
         materials: usize,
     ) -> Result<SceneMaps, MethodError> {
         let mut per_material: Vec<Option<MaterialMaps>> = vec![None; materials];
+        // Sampling tensors, applied once every map is read: (name, material, kind index).
+        let mut samplings = Vec::new();
+        let parse_map = |rest: &str| {
+            rest.split_once('_').and_then(|(i, kind)| {
+                let i: usize = i.parse().ok()?;
+                let k = MAP_KINDS.iter().position(|&m| m == kind)?;
+                (i < materials).then_some((i, k))
+            })
+        };
         for name in r.b.tensors.keys().filter(|k| k.starts_with("map_")) {
+            let sampling_of = name["map_".len()..]
+                .strip_suffix(&format!("_{SAMPLING}"))
+                .and_then(parse_map);
+            if let Some((i, k)) = sampling_of {
+                samplings.push((name, i, k));
+                continue;
+            }
             let scale_of = name["map_".len()..]
                 .strip_suffix(&format!("_{NORMAL_SCALE}"))
                 .and_then(|i| i.parse::<usize>().ok())
@@ -216,14 +245,9 @@ impl BakedScene {
                     .normal_scale = s;
                 continue;
             }
-            let parsed = name["map_".len()..].split_once('_').and_then(|(i, kind)| {
-                let i: usize = i.parse().ok()?;
-                let k = MAP_KINDS.iter().position(|&m| m == kind)?;
-                (i < materials).then_some((i, k))
-            });
-            let Some((i, k)) = parsed else {
+            let Some((i, k)) = parse_map(&name["map_".len()..]) else {
                 return Err(r.invalid(format!(
-                    "tensor '{name}' is not a map of one of the {materials} materials (map_<material>_<{}>)",
+                    "tensor '{name}' is not a map of one of the {materials} materials (map_<material>_<{}>[_{SAMPLING}])",
                     MAP_KINDS.join("|")
                 )));
             };
@@ -245,6 +269,22 @@ impl BakedScene {
             *per_material[i]
                 .get_or_insert_with(MaterialMaps::default)
                 .textures_mut()[k] = Some(tex);
+        }
+        for (name, i, k) in samplings {
+            let v = r.f32s(name, &[8])?;
+            let (sampler, transform) =
+                decode_sampling(&v).map_err(|e| r.invalid(format!("tensor '{name}': {e}")))?;
+            let slot = per_material[i]
+                .as_mut()
+                .and_then(|m| m.textures_mut().into_iter().nth(k))
+                .and_then(|t| t.as_mut())
+                .ok_or_else(|| {
+                    r.invalid(format!(
+                        "tensor '{name}' has no map 'map_{i}_{}' to apply to",
+                        MAP_KINDS[k]
+                    ))
+                })?;
+            *slot = slot.clone().with_sampler(sampler).with_transform(transform);
         }
         let per_material = per_material.into_iter().map(|m| m.map(Arc::new)).collect();
         SceneMaps::new(mesh, per_material).map_err(|e| r.invalid(e))
@@ -273,6 +313,67 @@ impl BakedScene {
 
 /// The kind name of the tensor holding a material's normal-map scale (`map_<m>_normal_scale`).
 const NORMAL_SCALE: &str = "normal_scale";
+
+/// The kind suffix of the tensor holding a map's sampler and transform
+/// (`map_<m>_<kind>_sampling`).
+const SAMPLING: &str = "sampling";
+
+/// Wrap modes in the order of their codes in a sampling tensor (0, 1, 2).
+pub const WRAP_CODES: [Wrap; 3] = [Wrap::Repeat, Wrap::ClampToEdge, Wrap::MirroredRepeat];
+
+/// Filters in the order of their codes in a sampling tensor (0, 1).
+pub const FILTER_CODES: [Filter; 2] = [Filter::Linear, Filter::Nearest];
+
+/// The sampling tensor of a texture (module docs), `None` when sampler and transform are
+/// the defaults (an identity transform counts as none: it reads the same texels).
+fn encode_sampling(tex: &Texture) -> Option<[f32; 8]> {
+    let s = tex.sampler();
+    let t = tex.transform().filter(|t| *t != UvTransform::default());
+    if s == Sampler::default() && t.is_none() {
+        return None;
+    }
+    let code = |w: Wrap| WRAP_CODES.iter().position(|&c| c == w).unwrap_or(0) as f32;
+    let t = t.unwrap_or_default();
+    Some([
+        code(s.wrap_s),
+        code(s.wrap_t),
+        FILTER_CODES
+            .iter()
+            .position(|&f| f == s.filter)
+            .unwrap_or(0) as f32,
+        t.offset.x,
+        t.offset.y,
+        t.rotation,
+        t.scale.x,
+        t.scale.y,
+    ])
+}
+
+/// The sampler and transform of a sampling tensor's finite values (an identity transform
+/// gives `None`), or a message naming the bad element.
+fn decode_sampling(v: &[f32]) -> Result<(Sampler, Option<UvTransform>), String> {
+    let code = |i: usize, what: &str, n: usize| {
+        let c = v[i];
+        if c.fract() == 0.0 && c >= 0.0 && (c as usize) < n {
+            Ok(c as usize)
+        } else {
+            Err(format!(
+                "element {i} ({what}) is {c}, expected a code in 0..{n}"
+            ))
+        }
+    };
+    let sampler = Sampler {
+        wrap_s: WRAP_CODES[code(0, "wrap_s", WRAP_CODES.len())?],
+        wrap_t: WRAP_CODES[code(1, "wrap_t", WRAP_CODES.len())?],
+        filter: FILTER_CODES[code(2, "filter", FILTER_CODES.len())?],
+    };
+    let t = UvTransform {
+        offset: Vec2::new(v[3], v[4]),
+        rotation: v[5],
+        scale: Vec2::new(v[6], v[7]),
+    };
+    Ok((sampler, (t != UvTransform::default()).then_some(t)))
+}
 
 /// JSON text of a value to record, with a typed error.
 pub(crate) fn json<S: Serialize>(v: &S) -> Result<String, MethodError> {

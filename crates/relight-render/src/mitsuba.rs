@@ -45,8 +45,19 @@
 //!   across the edges, `SurfaceInteraction::uv` of a PLY triangle). The PLY therefore stores
 //!   `(u, 1 - v)` and the EXR the texels unchanged, row 0 at the top; Mitsuba's bilinear,
 //!   repeat-wrapped lookup then reads the texels relight's reads, with the same weights.
+//! * **Sampling.** Mitsuba's `bitmap` wraps and filters as relight does (probed in Mitsuba
+//!   3.9 on a 2 x 2 bitmap across its edges: `repeat`, `clamp` and `mirror` wrap the texel
+//!   index as [`relight_scene::texture::Wrap`]'s `Repeat`, `ClampToEdge` and
+//!   `MirroredRepeat`; `nearest` reads the texel containing the point, `bilinear` the four
+//!   around it, texel centres at `(x + 0.5) / w`), and its `to_uv` maps the lookup's uv by
+//!   `uv' = M uv` before all that. Since the PLY's uv is relight's image space `(s, t)`, in
+//!   which `KHR_texture_transform` is defined, `to_uv` is that transform's matrix as it is
+//!   (`[[cos r sx, sin r sy, ox], [-sin r sx, cos r sy, oy], [0, 0, 1]]`). A texture whose
+//!   two axes wrap differently is refused (one `wrap_mode` for both). A normal map read
+//!   through a transform keeps its frame from the mesh's uv in both renderers.
 //! * **Textures** are linear float EXR (the already-decoded texels), read with `raw = true`,
-//!   `filter_type = bilinear`, `wrap_mode = repeat`. A `diffuse` map on Lambert
+//!   `filter_type = bilinear` and `wrap_mode = repeat` unless the texture's sampler says
+//!   otherwise (above). A `diffuse` map on Lambert
 //!   (`reflectance`) or plastic (`diffuse_reflectance`) and a `specular` map on the conductor
 //!   or plastic (`specular_reflectance`) are written pre-multiplied by the constant
 //!   reflectance (the product of a constant and a bilinear lookup is the lookup of the

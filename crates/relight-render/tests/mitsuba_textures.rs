@@ -215,6 +215,69 @@ fn diffuse_map_on_lambert_matches_mitsuba() {
     check("diffuse map on Lambert", &sc, 256, &controls);
 }
 
+/// Samplers and `KHR_texture_transform` through the export's `wrap_mode`, `filter_type` and
+/// `to_uv`: the ground's map clamped and read through a scale and offset that reach past the
+/// image on every side (so the clamp is seen), the sphere's mirrored, nearest-filtered and
+/// rotated. Controls: the transforms dropped; the ground's map repeated instead of clamped.
+#[test]
+fn samplers_and_texture_transforms_match_mitsuba() {
+    use glam::Vec2;
+    use relight_scene::texture::{Filter, Sampler, UvTransform, Wrap};
+    let lambert = |a: Vec3| Material::Lambert { albedo: a };
+    let sampler = |wrap, filter| Sampler {
+        wrap_s: wrap,
+        wrap_t: wrap,
+        filter,
+    };
+    let clamped = |wrap| {
+        colour_map()
+            .with_sampler(sampler(wrap, Filter::Linear))
+            .with_transform(Some(UvTransform {
+                offset: Vec2::new(-0.35, -0.3),
+                rotation: 0.0,
+                scale: Vec2::new(1.7, 1.6),
+            }))
+    };
+    let mirrored = colour_map()
+        .with_sampler(sampler(Wrap::MirroredRepeat, Filter::Nearest))
+        .with_transform(Some(UvTransform {
+            offset: Vec2::new(0.2, -0.1),
+            rotation: 0.6,
+            scale: Vec2::new(1.5, 2.5),
+        }));
+    let diffuse = |t: Texture| MaterialMaps {
+        diffuse: Some(t),
+        ..Default::default()
+    };
+    let sc = scene(
+        [lambert(Vec3::splat(0.9)), lambert(Vec3::new(0.8, 0.7, 0.6))],
+        [
+            Some(diffuse(clamped(Wrap::ClampToEdge))),
+            Some(diffuse(mirrored.clone())),
+        ],
+        true,
+    );
+    let controls = [
+        (
+            "transforms dropped",
+            remapped(
+                &remapped(
+                    &sc,
+                    0,
+                    diffuse(clamped(Wrap::ClampToEdge).with_transform(None)),
+                ),
+                1,
+                diffuse(mirrored.with_transform(None)),
+            ),
+        ),
+        (
+            "ground repeated, not clamped",
+            remapped(&sc, 0, diffuse(clamped(Wrap::Repeat))),
+        ),
+    ];
+    check("samplers and texture transforms", &sc, 256, &controls);
+}
+
 #[test]
 fn specular_and_roughness_maps_on_conductor_match_mitsuba() {
     let conductor = Material::GgxConductor {

@@ -120,3 +120,16 @@ pub fn sky_sphere_sh_bundle(
     assert!(o.status.success(), "{}", stderr(&o));
     b
 }
+
+/// The 8-bit RGB pixels of a PNG (relight's or the asset builder's).
+pub fn read_png(path: &Path) -> Vec<[u8; 3]> {
+    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size().unwrap()];
+    let info = r.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    buf[..info.buffer_size()]
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect()
+}

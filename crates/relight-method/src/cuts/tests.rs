@@ -436,4 +436,92 @@ fn maps_travel_in_the_bundle_and_damaged_maps_are_refused() {
         x.tensors.remove("uvs");
     });
     assert!(msg.contains("no texture coordinates"), "{msg}");
+    sampling_travels_in_the_bundle(&b);
+}
+
+/// The sampler and transform of `b`'s diffuse map: absent from the bundle while they are
+/// the defaults (so plain bundles are unchanged), stored in `map_0_diffuse_sampling` and
+/// read back when not, and a damaged sampling tensor is refused by name.
+fn sampling_travels_in_the_bundle(b: &CutsBaked) {
+    use relight_scene::material::maps::SceneMaps;
+    use relight_scene::texture::{Filter, Sampler, UvTransform, Wrap};
+    assert!(!store(b)
+        .unwrap()
+        .tensors
+        .contains_key("map_0_diffuse_sampling"));
+    let mut m0 = b.scene.maps.of(0).unwrap().clone();
+    m0.diffuse = m0.diffuse.map(|t| {
+        t.with_sampler(Sampler {
+            wrap_s: Wrap::ClampToEdge,
+            wrap_t: Wrap::MirroredRepeat,
+            filter: Filter::Nearest,
+        })
+        .with_transform(Some(UvTransform {
+            offset: glam::Vec2::new(0.25, -0.5),
+            rotation: 0.3,
+            scale: glam::Vec2::new(2.0, 0.5),
+        }))
+    });
+    let per = (0..b.scene.maps.len() as u32)
+        .map(|i| match i {
+            0 => Some(std::sync::Arc::new(m0.clone())),
+            _ => b.scene.maps.of(i).cloned().map(std::sync::Arc::new),
+        })
+        .collect();
+    let mut s = b.clone();
+    s.scene.maps = SceneMaps::new(&s.scene.mesh, per).unwrap();
+    let stored = store(&s).unwrap();
+    assert_eq!(stored.tensors["map_0_diffuse_sampling"].shape, vec![8]);
+    let back = round_trip(&s).unwrap();
+    assert_eq!(back.scene.maps.of(0), Some(&m0));
+    // Damaged sampling tensors.
+    let good = stored.tensors["map_0_diffuse_sampling"].to_f32().unwrap();
+    let with = |i: usize, v: f32| {
+        let mut g = good.clone();
+        g[i] = v;
+        Tensor::from_f32(vec![8], &g)
+    };
+    for (what, name, t, want) in [
+        (
+            "unknown wrap",
+            "map_0_diffuse_sampling",
+            with(0, 3.0),
+            "wrap_s",
+        ),
+        (
+            "fractional filter",
+            "map_0_diffuse_sampling",
+            with(2, 0.5),
+            "filter",
+        ),
+        (
+            "negative wrap",
+            "map_0_diffuse_sampling",
+            with(1, -1.0),
+            "wrap_t",
+        ),
+        (
+            "non-finite",
+            "map_0_diffuse_sampling",
+            with(5, f32::NAN),
+            "non-finite",
+        ),
+        (
+            "bad shape",
+            "map_0_diffuse_sampling",
+            Tensor::from_f32(vec![7], &good[..7]),
+            "expected [8]",
+        ),
+        (
+            "no map",
+            "map_0_specular_sampling",
+            Tensor::from_f32(vec![8], &good),
+            "no map 'map_0_specular'",
+        ),
+    ] {
+        let msg = corrupt(&s, |x| {
+            x.insert(name, t);
+        });
+        assert!(msg.contains(want) && msg.contains(name), "{what}: {msg}");
+    }
 }

@@ -5,7 +5,7 @@ use super::MitsubaError;
 use relight_scene::material::maps::{MaterialMaps, MIN_MAP_ALPHA};
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
-use relight_scene::texture::Texture;
+use relight_scene::texture::{Filter, Texture, UvTransform, Wrap};
 use relight_scene::Vec3;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -16,17 +16,61 @@ fn refuse(index: usize, map: &'static str, reason: String) -> MitsubaError {
 }
 
 /// Write `texels` (of `t`'s size) as `tex_<index>_<kind>.exr` in `dir`; the `bitmap` entry
-/// of `scene.json` naming it.
+/// of `scene.json` naming it, with `t`'s sampler and transform where they are not the
+/// defaults ([`sampling`]).
 fn write_texture(
     dir: &Path,
     index: usize,
-    kind: &str,
+    kind: &'static str,
     t: &Texture,
     texels: &[Vec3],
 ) -> Result<Value, MitsubaError> {
+    let mut entry = sampling(index, kind, t)?;
     let name = format!("tex_{index}_{kind}.exr");
     relight_scene::io::write_exr(&dir.join(&name), t.width(), t.height(), texels)?;
-    Ok(json!({ "bitmap": name }))
+    entry["bitmap"] = json!(name);
+    Ok(entry)
+}
+
+/// The sampling keys of `t`'s `bitmap` entry, each only when not the default (parent module
+/// docs): `wrap_mode` (`clamp`, `mirror`), `filter_type` (`nearest`) and `to_uv` (the rows
+/// of the 3 x 3 affine matrix of its `KHR_texture_transform`, which acts on Mitsuba's uv as
+/// on relight's image space `(s, t)`). Refused when the two axes wrap differently (Mitsuba's
+/// `wrap_mode` is one for both).
+fn sampling(index: usize, kind: &'static str, t: &Texture) -> Result<Value, MitsubaError> {
+    let mode = |w: Wrap| match w {
+        Wrap::Repeat => "repeat",
+        Wrap::ClampToEdge => "clamp",
+        Wrap::MirroredRepeat => "mirror",
+    };
+    let s = t.sampler();
+    if s.wrap_s != s.wrap_t {
+        return Err(refuse(
+            index,
+            kind,
+            format!(
+                "its sampler wraps s and t differently ({:?} and {:?}) while Mitsuba's bitmap \
+                 has one wrap_mode for both axes",
+                s.wrap_s, s.wrap_t
+            ),
+        ));
+    }
+    let mut entry = json!({});
+    if s.wrap_s != Wrap::Repeat {
+        entry["wrap_mode"] = json!(mode(s.wrap_s));
+    }
+    if s.filter == Filter::Nearest {
+        entry["filter_type"] = json!("nearest");
+    }
+    if let Some(x) = t.transform().filter(|x| *x != UvTransform::default()) {
+        let (sin, cos) = x.rotation.sin_cos();
+        entry["to_uv"] = json!([
+            [cos * x.scale.x, sin * x.scale.y, x.offset.x],
+            [-sin * x.scale.x, cos * x.scale.y, x.offset.y],
+            [0.0, 0.0, 1.0],
+        ]);
+    }
+    Ok(entry)
 }
 
 /// `t` scaled per channel by the constant `c` that relight multiplies its lookup by (the
@@ -34,7 +78,7 @@ fn write_texture(
 fn scaled(
     dir: &Path,
     index: usize,
-    kind: &str,
+    kind: &'static str,
     t: &Texture,
     c: Vec3,
 ) -> Result<Value, MitsubaError> {
@@ -143,7 +187,7 @@ pub(super) fn textured_bsdf(
 fn channel(
     dir: &Path,
     index: usize,
-    kind: &str,
+    kind: &'static str,
     t: &Texture,
     c: usize,
     factor: f32,
@@ -261,7 +305,7 @@ mod tests {
     use relight_scene::material::Material;
     use relight_scene::scene::{Environment, Scene};
     use relight_scene::shapes::{ground_plane, uv_sphere};
-    use relight_scene::texture::Texture;
+    use relight_scene::texture::{Filter, Texture, UvTransform, Wrap};
     use relight_scene::Vec3;
     use relight_sphere::envmap::EnvMap;
     use serde_json::Value;
@@ -438,6 +482,71 @@ mod tests {
         assert!(
             msg.starts_with("material 1: its normal map cannot be exported")
                 && msg.contains("differs from the face normal or the triangle's dp/du"),
+            "{msg}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A sampler and transform become `wrap_mode`, `filter_type` and `to_uv` (absent while
+    /// they are the defaults); a texture wrapping its two axes differently is refused.
+    #[test]
+    fn samplers_and_transforms_are_written_and_per_axis_wraps_refused() {
+        use relight_scene::texture::Sampler;
+        let lambert = Material::Lambert {
+            albedo: Vec3::splat(0.5),
+        };
+        let sampled = |wrap_s, wrap_t| {
+            ramp()
+                .with_sampler(Sampler {
+                    wrap_s,
+                    wrap_t,
+                    filter: Filter::Nearest,
+                })
+                .with_transform(Some(UvTransform {
+                    offset: glam::Vec2::new(0.25, -0.5),
+                    rotation: std::f32::consts::FRAC_PI_2,
+                    scale: glam::Vec2::new(2.0, 3.0),
+                }))
+        };
+        let diffuse = |t| {
+            Some(MaterialMaps {
+                diffuse: Some(t),
+                ..Default::default()
+            })
+        };
+        let s = scene(
+            vec![lambert, lambert],
+            vec![
+                diffuse(sampled(Wrap::ClampToEdge, Wrap::ClampToEdge)),
+                diffuse(ramp()),
+            ],
+        );
+        let dir = tmp("sampling");
+        let json = export_mitsuba(&s, &dir, 4, 2).unwrap();
+        let doc: Value = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        let t0 = &doc["shapes"][0]["bsdf"]["reflectance"];
+        assert_eq!(t0["bitmap"], "tex_0_diffuse.exr");
+        assert_eq!(t0["wrap_mode"], "clamp");
+        assert_eq!(t0["filter_type"], "nearest");
+        // T(offset) R(pi / 2) S(scale): s' = 0.25 + 3 t, t' = -0.5 - 2 s.
+        let m: Vec<Vec<f32>> = serde_json::from_value(t0["to_uv"].clone()).unwrap();
+        let want = [[0.0, 3.0, 0.25], [-2.0, 0.0, -0.5], [0.0, 0.0, 1.0]];
+        for (row, w) in m.iter().zip(want) {
+            for (a, b) in row.iter().zip(w) {
+                assert!((a - b).abs() < 1e-6, "{m:?}");
+            }
+        }
+        let t1 = &doc["shapes"][1]["bsdf"]["reflectance"];
+        assert_eq!(t1.as_object().unwrap().len(), 1, "{t1}");
+        let s = scene(
+            vec![lambert, lambert],
+            vec![None, diffuse(sampled(Wrap::Repeat, Wrap::MirroredRepeat))],
+        );
+        let e = export_mitsuba(&s, &dir, 4, 2).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("material 1: its diffuse map cannot be exported")
+                && msg.contains("one wrap_mode for both axes"),
             "{msg}"
         );
         let _ = std::fs::remove_dir_all(&dir);
