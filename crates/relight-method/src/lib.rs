@@ -54,7 +54,7 @@ mod test_scene;
 pub mod vmf;
 
 pub use error::MethodError;
-pub use store::{BakeRecord, BakedScene};
+pub use store::{objects_of_materials, BakeRecord, BakedScene};
 
 use relight_bundle::Bundle;
 use relight_render::Image;
@@ -390,6 +390,7 @@ impl Baked {
             mesh: std::mem::take(&mut s.mesh),
             materials: std::mem::take(&mut s.materials),
             maps: std::mem::take(&mut s.maps),
+            objects: std::mem::take(&mut s.objects),
         }
     }
 

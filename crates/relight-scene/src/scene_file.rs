@@ -25,6 +25,14 @@
 //! `"layout"`: `latlong`, `cube`, `probe`), `sky` (procedural sun and sky) or `constant`
 //! (`"radiance": [r, g, b]`).
 //!
+//! # Objects
+//! The built scene keeps its objects' names ([`Scene::objects`]): a mesh shape brings its
+//! file's objects (glTF nodes or meshes, OBJ `o` / `g`, else the file stem), and a mesh of one
+//! object in a scene of several shapes takes the shape's optional `"name"`; a procedural
+//! shape is named by its `"name"` or by its kind and place (`sphere1`, `plane2`: shape 1, 2).
+//! A `"name"` given twice is refused naming both shapes; a file's or a generated name already
+//! taken gets the first free suffix `.1`, `.2`, ...
+//!
 //! # Files a scene names
 //! Relative paths are resolved against the scene file's folder; `..` and absolute paths are
 //! allowed: a scene is a list of files its author chose (the examples use
