@@ -572,6 +572,9 @@ pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
 }
 
 /// Frame settings of every method. A closed set (one arm per [`MethodKind`]).
+// One `FrameSettings` exists per frame (never in arrays): boxing the cuts arm (its material
+// edits) would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum FrameSettings {
     /// `sh`.

@@ -59,9 +59,8 @@ pub fn apply_material_edits(
         return Ok(());
     }
     let bad = |m: String| Err(MethodError::Settings(m));
-    let (bare, named): (Vec<MaterialEdit>, Vec<MaterialEdit>) =
+    let (mut bare, named): (Vec<MaterialEdit>, Vec<MaterialEdit>) =
         edits.into_iter().partition(|e| e.object.is_none());
-    let (mut bare, named): (Vec<MaterialEdit>, Vec<MaterialEdit>) = (bare, named);
     if bare.len() > 1 {
         return bad("--material for every surface is given more than once".into());
     }

@@ -332,20 +332,22 @@ fn objects_are_named_by_the_scene_the_file_or_their_kind_and_place() {
     assert_eq!(object_names(&one), ["a", "b"]);
     let one = build(r#"{"type": "mesh", "file": "one.obj", "name": "x"}"#).unwrap();
     assert_eq!(object_names(&one), ["one"]);
-    let one = build(&format!("{SPHERE}")).unwrap();
+    let one = build(SPHERE).unwrap();
     assert_eq!(object_names(&one), ["sphere1"]);
 }
 
 #[test]
 fn a_name_given_twice_or_malformed_is_refused_naming_the_shapes() {
-    let named = |n: &str| {
-        format!(r#"{{"type": "sphere", "center": [0, 0, 0], "radius": 1, "name": {n}}}"#)
-    };
+    let named =
+        |n: &str| format!(r#"{{"type": "sphere", "center": [0, 0, 0], "radius": 1, "name": {n}}}"#);
     let e = refused(&scene_json(
         &format!("{}, {SPHERE}, {}", named("\"x\""), named("\"x\"")),
         CONSTANT,
     ));
-    assert!(e.contains("shapes[0] (sphere) and shapes[2] (sphere)"), "{e}");
+    assert!(
+        e.contains("shapes[0] (sphere) and shapes[2] (sphere)"),
+        "{e}"
+    );
     assert!(e.contains("\"x\""), "{e}");
     for bad in ["\"\"", "\"a=b\"", "\"a\\nb\""] {
         let e = refused(&scene_json(&named(bad), CONSTANT));
