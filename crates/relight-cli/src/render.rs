@@ -108,7 +108,7 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
     let mut inputs = vec![a.bundle.as_path()];
     inputs.extend(a.env.env.as_deref());
     args::check_image_outputs(&a.out, &inputs)?;
-    let baked = read_any(&a.bundle)?;
+    let mut baked = read_any(&a.bundle)?;
     let desc = &baked.scene().desc;
     let env = a.env.build(desc, &a.bundle)?;
     let (method, why) = match a.method {
@@ -136,8 +136,12 @@ pub fn run(a: Args, m: &ArgMatches, out: &Out) -> Result<()> {
             (&[MethodKind::Vmf], arg_names::<VmfFrameSettings>()),
         ],
     )?;
-    let settings = frame_settings(&a, method)?;
+    let mut settings = frame_settings(&a, method)?;
     let mut camera = desc.camera;
+    if let FrameSettings::Cuts(cuts) = &mut settings {
+        relight_method::cuts::apply_material_edits(&mut baked, cuts)
+            .with_context(|| a.bundle.display().to_string())?;
+    }
     if let Some(c) = &a.camera {
         camera = args::camera(c, &camera)?;
     }

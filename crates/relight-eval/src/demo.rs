@@ -91,17 +91,20 @@ pub fn demo_scene(width: u32) -> SceneDesc {
                 size: 6.0,
                 divisions: Some(64),
                 material: lambert(0.6, 0.6, 0.6),
+                name: None,
             },
             ShapeDesc::Sphere {
                 center: [-0.6, 0.55, 0.0],
                 radius: 0.55,
                 rings: Some(48),
                 material: lambert(0.8, 0.25, 0.2),
+                name: None,
             },
             ShapeDesc::Box {
                 min: [0.25, 0.0, -0.55],
                 max: [1.15, 0.9, 0.35],
                 material: lambert(0.25, 0.45, 0.8),
+                name: None,
             },
         ],
         environment: sky(),
@@ -120,6 +123,7 @@ pub fn glossy_scene(width: u32) -> SceneDesc {
                 size: 4.0,
                 divisions: Some(16),
                 material: lambert(0.6, 0.6, 0.6),
+                name: None,
             },
             ShapeDesc::Sphere {
                 center: [0.0, 0.7, 0.0],
@@ -132,6 +136,7 @@ pub fn glossy_scene(width: u32) -> SceneDesc {
                     }
                     .into(),
                 ),
+                name: None,
             },
         ],
         environment: sky(),

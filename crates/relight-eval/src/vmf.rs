@@ -580,6 +580,8 @@ fn run_case(
         });
         let mut fine = scene.clone();
         fine.mesh = uniform_refinement(&scene.mesh, e.settings.spatial_min_area);
+        // The refinement renumbers the triangles: the objects' ranges no longer hold.
+        fine.objects = Vec::new();
         let m = vmf_bake(e, &desc, &fine, &case.scene, &initial, "vmf uniform")?;
         let mut r = row("uniform", &case.name, &m, refr, &mask)?;
         r.initial_vertices = scene.mesh.vertex_count();

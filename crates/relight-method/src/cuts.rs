@@ -3,10 +3,12 @@
 //! `relight_render::shade_cuts` (per pixel: three vertex cuts merged with the frame's
 //! illumination cut and the scene's materials evaluated at run time).
 
+mod edit;
 mod frame;
 pub mod local;
 mod store;
 
+pub use edit::{apply_material_edits, parse_material_edit, MaterialEdit};
 pub use frame::{CutsFrame, CutsFrameSettings, EnvLightCut, MaterialOverride};
 pub use store::{load, store};
 

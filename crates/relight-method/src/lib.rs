@@ -54,7 +54,7 @@ mod test_scene;
 pub mod vmf;
 
 pub use error::MethodError;
-pub use store::{BakeRecord, BakedScene};
+pub use store::{objects_of_materials, BakeRecord, BakedScene};
 
 use relight_bundle::Bundle;
 use relight_render::Image;
@@ -390,6 +390,7 @@ impl Baked {
             mesh: std::mem::take(&mut s.mesh),
             materials: std::mem::take(&mut s.materials),
             maps: std::mem::take(&mut s.maps),
+            objects: std::mem::take(&mut s.objects),
         }
     }
 
@@ -571,6 +572,9 @@ pub fn from_bundle(b: &Bundle, path: &Path) -> Result<Baked, MethodError> {
 }
 
 /// Frame settings of every method. A closed set (one arm per [`MethodKind`]).
+// One `FrameSettings` exists per frame (never in arrays): boxing the cuts arm (its material
+// edits) would buy nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum FrameSettings {
     /// `sh`.

@@ -10,7 +10,9 @@
 //! * `record`: how the bake ran ([`BakeRecord`]: back-end, storage precision, and for a part
 //!   of a sharded bake its vertex range and part number; no time, so a bake's bytes are
 //!   reproducible);
-//! * `scene`, `materials`: the scene description and the merged scene's materials.
+//! * `scene`, `materials`: the scene description and the merged scene's materials;
+//! * `objects`: the named objects, `[{"name", "first", "count"}]` over the triangles
+//!   ([`BakedScene::objects`]; absent in older bundles: [`objects_of_materials`]).
 //!
 //! Tensors shared by every method: `positions [V, 3]`, `normals [V, 3]`, optional
 //! `uvs [V, 2]` (F32), `indices [T, 3]`, `material_ids [T]` (U32), and the materials' texture
@@ -30,6 +32,7 @@ use relight_bundle::{Bundle, Tensor};
 use relight_scene::material::maps::{MaterialMaps, SceneMaps, MAP_KINDS};
 use relight_scene::material::Material;
 use relight_scene::mesh::TriMesh;
+use relight_scene::scene::{validate_objects, SceneObject};
 use relight_scene::scene_file::SceneDesc;
 use relight_scene::texture::{Filter, Sampler, Texture, UvTransform, Wrap, MAX_TEXTURE_PIXELS};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
@@ -116,6 +119,47 @@ pub struct BakedScene {
     pub materials: Vec<Material>,
     /// Their texture and normal maps (stored as tensors `map_<material>_<kind>`).
     pub maps: SceneMaps,
+    /// The named objects, covering the triangles in order (metadata `objects`; stored as
+    /// [`objects_of_materials`] when empty).
+    pub objects: Vec<SceneObject>,
+}
+
+/// One entry of the `objects` metadata: an object's name and triangles `first..first + count`.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StoredObject {
+    name: String,
+    first: u32,
+    count: u32,
+}
+
+/// The objects of a scene without names (built in code, or a bundle written before the
+/// `objects` key): when every material's triangles are one contiguous run, one object per
+/// run named `material<index>`; otherwise one object `scene`.
+pub fn objects_of_materials(mesh: &TriMesh) -> Vec<SceneObject> {
+    let mut runs: Vec<(u32, Range<u32>)> = Vec::new();
+    for (t, &m) in mesh.material_ids.iter().enumerate() {
+        match runs.last_mut() {
+            Some((id, r)) if *id == m => r.end = t as u32 + 1,
+            _ => runs.push((m, t as u32..t as u32 + 1)),
+        }
+    }
+    let mut ids: Vec<u32> = runs.iter().map(|r| r.0).collect();
+    ids.sort_unstable();
+    ids.dedup();
+    if ids.len() != runs.len() || runs.is_empty() {
+        let name = "scene".to_string();
+        return vec![SceneObject {
+            name,
+            triangles: 0..mesh.triangle_count() as u32,
+        }];
+    }
+    runs.into_iter()
+        .map(|(m, triangles)| SceneObject {
+            name: format!("material{m}"),
+            triangles,
+        })
+        .collect()
 }
 
 impl BakedScene {
@@ -126,6 +170,11 @@ impl BakedScene {
             mesh: input.scene.mesh.clone(),
             materials: input.scene.materials.clone(),
             maps: input.scene.maps.clone(),
+            objects: if input.scene.objects.is_empty() {
+                objects_of_materials(&input.scene.mesh)
+            } else {
+                input.scene.objects.clone()
+            },
         }
     }
 
@@ -144,6 +193,22 @@ impl BakedScene {
         meta("relight_version", env!("CARGO_PKG_VERSION").into());
         meta("settings", json(settings)?);
         meta("record", json(record)?);
+        // A scene built in code without names is stored as one without the key reads.
+        let unnamed = objects_of_materials(&self.mesh);
+        let named = if self.objects.is_empty() {
+            &unnamed
+        } else {
+            &self.objects
+        };
+        let objects: Vec<StoredObject> = named
+            .iter()
+            .map(|o| StoredObject {
+                name: o.name.clone(),
+                first: o.triangles.start,
+                count: o.triangles.len() as u32,
+            })
+            .collect();
+        meta("objects", json(&objects)?);
         self.store_scene(b)
     }
 
@@ -302,12 +367,33 @@ impl BakedScene {
         }
         let mesh = r.mesh(materials.len())?;
         let maps = Self::load_maps(r, &mesh, materials.len())?;
+        let objects = Self::load_objects(r, &mesh)?;
         Ok(BakedScene {
             desc,
             mesh,
             materials,
             maps,
+            objects,
         })
+    }
+
+    /// The `objects` metadata, checked against the mesh ([`validate_objects`]); absent (an
+    /// older bundle): [`objects_of_materials`].
+    fn load_objects(r: &TensorReader, mesh: &TriMesh) -> Result<Vec<SceneObject>, MethodError> {
+        if !r.has_meta("objects") {
+            return Ok(objects_of_materials(mesh));
+        }
+        let stored: Vec<StoredObject> = r.json("objects")?;
+        let objects: Vec<SceneObject> = stored
+            .into_iter()
+            .map(|o| SceneObject {
+                triangles: o.first..o.first.saturating_add(o.count),
+                name: o.name,
+            })
+            .collect();
+        validate_objects(&objects, mesh.triangle_count() as u32)
+            .map_err(|e| r.invalid(format!("metadata 'objects': {e}")))?;
+        Ok(objects)
     }
 }
 
@@ -424,6 +510,11 @@ impl<'a> TensorReader<'a> {
     /// Whether the bundle predates the `schema` key.
     pub fn is_legacy(&self) -> bool {
         !self.b.metadata.contains_key("schema")
+    }
+
+    /// Whether the bundle holds metadata `key`.
+    pub fn has_meta(&self, key: &str) -> bool {
+        self.b.metadata.contains_key(key)
     }
 
     /// A required metadata string.

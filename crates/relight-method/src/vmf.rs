@@ -97,6 +97,8 @@ impl Method for Vmf {
                 &run,
             )?;
             scene.mesh = mesh;
+            // The refinement interleaves the objects' triangles: the names do not survive it.
+            scene.objects = crate::store::objects_of_materials(&scene.mesh);
             bake
         } else {
             relight_bake::vmf::bake_vertices(

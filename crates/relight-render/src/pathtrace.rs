@@ -363,6 +363,7 @@ mod tests {
             materials: vec![material],
             env: Environment::new(env),
             camera: Camera::look_at([0.0, 0.0, 4.0], [0.0; 3], 40.0, 24, 16),
+            objects: Vec::new(),
         }
     }
 

@@ -939,6 +939,7 @@ mod tests {
             materials: mats.clone(),
             env: Environment::new(map.clone()),
             camera,
+            objects: Vec::new(),
         };
         let light = relight_sphere::sh::project_env(&map, 3);
         let albedo = relight_bake::transport::vertex_albedo(&mesh, &mats);

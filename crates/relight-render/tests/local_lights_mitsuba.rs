@@ -48,6 +48,7 @@ fn room() -> Scene {
         ],
         env: Environment::new(EnvMap::constant(Vec3::ZERO)),
         camera: Camera::look_at([0.0, 1.0, 0.95], [0.0, 0.8, -1.0], 70.0, 32, 24),
+        objects: Vec::new(),
     }
 }
 

@@ -63,6 +63,7 @@ fn sphere_scene(material: Material, env: EnvMap, size: u32) -> Scene {
         materials: vec![material],
         env: Environment::new(env),
         camera: camera([0.0, 0.0, 3.2], [0.0; 3], 45.0, size),
+        objects: Vec::new(),
     }
 }
 
@@ -83,6 +84,7 @@ fn sphere_on_ground(
         materials: vec![sphere_mat, ground_mat],
         env,
         camera: camera([0.0, 2.6, 4.6], [0.0, 0.7, 0.0], 50.0, size),
+        objects: Vec::new(),
     }
 }
 

@@ -109,6 +109,7 @@ fn scene(materials: [Material; 2], maps: [Option<MaterialMaps>; 2], sphere: bool
         materials: materials.to_vec(),
         env: lobe_env(),
         camera: Camera::look_at([0.0, 2.0, 2.6], [0.0, 0.35, 0.0], 52.0, 48, 48),
+        objects: Vec::new(),
     }
 }
 

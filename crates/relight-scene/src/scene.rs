@@ -63,6 +63,47 @@ pub struct Scene {
     pub env: Environment,
     /// The camera.
     pub camera: Camera,
+    /// Named objects: contiguous triangle ranges in order covering every triangle, with
+    /// unique names ([`SceneObject`]); empty for a scene built in code without names.
+    pub objects: Vec<SceneObject>,
+}
+
+/// A named part of a scene: a range of the merged mesh's triangles.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct SceneObject {
+    /// Unique within the scene.
+    pub name: String,
+    /// Its triangles (indices into `mesh.indices`).
+    pub triangles: std::ops::Range<u32>,
+}
+
+/// Check that `objects` are contiguous ranges in order covering triangles `0..triangles`
+/// exactly, each non-empty, with unique non-empty names; the message names the first
+/// object that breaks a rule.
+pub fn validate_objects(objects: &[SceneObject], triangles: u32) -> Result<(), String> {
+    let mut next = 0u32;
+    let mut seen = std::collections::HashSet::new();
+    for o in objects {
+        if o.name.is_empty() {
+            return Err(format!("object {:?}: an empty name", o.triangles));
+        }
+        if !seen.insert(o.name.as_str()) {
+            return Err(format!("object {:?}: the name is given twice", o.name));
+        }
+        if o.triangles.start != next || o.triangles.end <= o.triangles.start {
+            return Err(format!(
+                "object {:?}: triangles {}..{} do not follow on from {next} (objects must cover the triangles in order, each at least one)",
+                o.name, o.triangles.start, o.triangles.end
+            ));
+        }
+        next = o.triangles.end;
+    }
+    if next != triangles {
+        return Err(format!(
+            "the objects cover triangles 0..{next} of {triangles}"
+        ));
+    }
+    Ok(())
 }
 
 impl Scene {

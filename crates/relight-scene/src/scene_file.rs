@@ -25,6 +25,14 @@
 //! `"layout"`: `latlong`, `cube`, `probe`), `sky` (procedural sun and sky) or `constant`
 //! (`"radiance": [r, g, b]`).
 //!
+//! # Objects
+//! The built scene keeps its objects' names ([`Scene::objects`]): a mesh shape brings its
+//! file's objects (glTF nodes or meshes, OBJ `o` / `g`, else the file stem), and a mesh of one
+//! object in a scene of several shapes takes the shape's optional `"name"`; a procedural
+//! shape is named by its `"name"` or by its kind and place (`sphere1`, `plane2`: shape 1, 2).
+//! A `"name"` given twice is refused naming both shapes; a file's or a generated name already
+//! taken gets the first free suffix `.1`, `.2`, ...
+//!
 //! # Files a scene names
 //! Relative paths are resolved against the scene file's folder; `..` and absolute paths are
 //! allowed: a scene is a list of files its author chose (the examples use
@@ -58,7 +66,7 @@ use crate::io::files::{self, LoadOptions};
 use crate::material::maps::{MaterialDesc, MaterialMaps, SceneMaps};
 use crate::material::Material;
 use crate::mesh::{TriMesh, MAX_COORDINATE};
-use crate::scene::{Environment, Scene};
+use crate::scene::{Environment, Scene, SceneObject};
 use crate::{io, meshops, shapes, sky, Vec3};
 use relight_sphere::envmap::{EnvLayout, EnvMap};
 use serde::{Deserialize, Serialize};
@@ -73,6 +81,8 @@ pub const DIVISIONS: RangeInclusive<u32> = 1..=2048;
 pub const DEFAULT_RINGS: u32 = 48;
 /// Default `divisions` of a plane.
 pub const DEFAULT_DIVISIONS: u32 = 32;
+/// Longest `"name"` of a shape, in characters.
+pub const MAX_NAME_CHARS: usize = 256;
 /// Quads per side of each box face ([`ShapeDesc::Box`]).
 const BOX_DIVISIONS: u32 = 4;
 
@@ -109,6 +119,11 @@ pub enum ShapeDesc {
         /// from a shared one (for bakes of a million vertices and more).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         subdivide: Option<u32>,
+        /// Its name in the scene's object list ([`crate::scene::SceneObject`]); unique
+        /// among the shapes. A mesh file's objects keep their own names unless the file
+        /// holds one object and the scene several shapes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
     },
     /// A tessellated sphere.
     Sphere {
@@ -123,6 +138,11 @@ pub enum ShapeDesc {
         /// Material.
         #[serde(default)]
         material: Option<MaterialDesc>,
+        /// Its name in the scene's object list ([`crate::scene::SceneObject`]); unique
+        /// among the shapes. A mesh file's objects keep their own names unless the file
+        /// holds one object and the scene several shapes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
     },
     /// A square facing +Y.
     Plane {
@@ -136,6 +156,11 @@ pub enum ShapeDesc {
         /// Material.
         #[serde(default)]
         material: Option<MaterialDesc>,
+        /// Its name in the scene's object list ([`crate::scene::SceneObject`]); unique
+        /// among the shapes. A mesh file's objects keep their own names unless the file
+        /// holds one object and the scene several shapes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
     },
     /// A small table (a top slab on four legs) standing on y = 0, centred on the Y axis.
     Table {
@@ -148,6 +173,11 @@ pub enum ShapeDesc {
         /// Material.
         #[serde(default)]
         material: Option<MaterialDesc>,
+        /// Its name in the scene's object list ([`crate::scene::SceneObject`]); unique
+        /// among the shapes. A mesh file's objects keep their own names unless the file
+        /// holds one object and the scene several shapes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
     },
     /// An axis-aligned box.
     Box {
@@ -158,6 +188,11 @@ pub enum ShapeDesc {
         /// Material.
         #[serde(default)]
         material: Option<MaterialDesc>,
+        /// Its name in the scene's object list ([`crate::scene::SceneObject`]); unique
+        /// among the shapes. A mesh file's objects keep their own names unless the file
+        /// holds one object and the scene several shapes.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        name: Option<String>,
     },
 }
 
@@ -266,9 +301,20 @@ impl SceneDesc {
         if self.shapes.is_empty() {
             return Err("the scene has no shapes".into());
         }
+        let mut named: std::collections::HashMap<&str, usize> = Default::default();
         for (i, s) in self.shapes.iter().enumerate() {
             s.validate()
                 .map_err(|m| format!("{}: {m}", shape_label(i, s)))?;
+            if let Some(n) = s.name() {
+                if let Some(&j) = named.get(n) {
+                    return Err(format!(
+                        "{} and {} are both named {n:?} (names must be unique)",
+                        shape_label(j, &self.shapes[j]),
+                        shape_label(i, s)
+                    ));
+                }
+                named.insert(n, i);
+            }
         }
         self.environment.validate()?;
         self.camera.validate().map_err(String::from)
@@ -312,6 +358,8 @@ impl SceneDesc {
         let mut mesh = TriMesh::default();
         let mut materials: Vec<Material> = Vec::new();
         let mut maps = Vec::new();
+        // Each object's name, whether the scene file gave it, and its triangles.
+        let mut named: Vec<(String, bool, std::ops::Range<u32>)> = Vec::new();
         for (i, s) in self.shapes.iter().enumerate() {
             let others = mesh.triangle_count() as u64;
             if let Some(n) = s.triangle_count() {
@@ -332,21 +380,22 @@ impl SceneDesc {
                 max_triangles: limit.saturating_sub(others) as usize,
                 ..*opts
             };
-            let (part, mats, loaded_maps) = build_shape(s, &budget).map_err(|e| match e {
-                SceneError::TooManyTriangles {
-                    at,
-                    count,
-                    at_least,
-                    ..
-                } => SceneError::TooManyTriangles {
-                    at,
-                    count,
-                    at_least,
-                    others,
-                    limit,
-                },
-                e => e,
-            })?;
+            let (part, mats, loaded_maps, file_objects) =
+                build_shape(s, &budget).map_err(|e| match e {
+                    SceneError::TooManyTriangles {
+                        at,
+                        count,
+                        at_least,
+                        ..
+                    } => SceneError::TooManyTriangles {
+                        at,
+                        count,
+                        at_least,
+                        others,
+                        limit,
+                    },
+                    e => e,
+                })?;
             for m in &mats {
                 m.validate()
                     .map_err(|e| SceneError::malformed(origin, format!("material: {e}")))?;
@@ -373,9 +422,22 @@ impl SceneDesc {
                 ),
                 None => maps.extend(mats.iter().map(|_| None)),
             }
+            let first = mesh.triangle_count() as u32;
+            named.extend(
+                shape_objects(
+                    i,
+                    s,
+                    self.shapes.len(),
+                    &file_objects,
+                    part.triangle_count() as u32,
+                )
+                .into_iter()
+                .map(|(n, explicit, r)| (n, explicit, first + r.start..first + r.end)),
+            );
             mesh.append(&part, materials.len() as u32);
             materials.extend(mats);
         }
+        let objects = unique_objects(named);
         let maps = SceneMaps::new(&mesh, maps).map_err(|m| SceneError::malformed(origin, m))?;
         if let Some((lo, hi)) = mesh.bounds() {
             let extent = lo.abs().max(hi.abs()).max_element();
@@ -393,21 +455,80 @@ impl SceneDesc {
             maps,
             env,
             camera: self.camera,
+            objects,
         })
+    }
+}
+
+/// The objects of shape `i` of `shapes` (with triangles counted from the shape's first):
+/// name, whether the scene file gave it, triangles. A mesh keeps its file's objects (one named
+/// by the shape's `"name"` when the file holds one and the scene several shapes); a
+/// procedural shape is one object named by its `"name"` or its kind and place (`sphere1`).
+fn shape_objects(
+    i: usize,
+    s: &ShapeDesc,
+    shapes: usize,
+    file_objects: &[io::MeshObject],
+    triangles: u32,
+) -> Vec<(String, bool, std::ops::Range<u32>)> {
+    let whole = |name: String, explicit: bool| vec![(name, explicit, 0..triangles)];
+    match (s.name(), file_objects) {
+        (Some(n), [_]) if shapes > 1 => whole(n.to_string(), true),
+        (Some(n), []) => whole(n.to_string(), true),
+        (None, []) => whole(format!("{}{}", shape_kind(s), i + 1), false),
+        (_, objects) => objects
+            .iter()
+            .map(|o| (o.name.clone(), false, o.triangles.clone()))
+            .collect(),
+    }
+}
+
+/// Scene objects from `(name, explicit, triangles)`: explicit names (unique, checked by
+/// [`SceneDesc::validate`]) are kept; a file's or generated name already taken gets the
+/// first free suffix `.1`, `.2`, ...; empty objects are dropped.
+fn unique_objects(named: Vec<(String, bool, std::ops::Range<u32>)>) -> Vec<SceneObject> {
+    let mut used: std::collections::HashSet<String> =
+        named.iter().filter(|n| n.1).map(|n| n.0.clone()).collect();
+    named
+        .into_iter()
+        .filter(|n| !n.2.is_empty())
+        .map(|(name, explicit, triangles)| {
+            let name = if explicit {
+                name
+            } else {
+                let free = (0..)
+                    .map(|k| {
+                        if k == 0 {
+                            name.clone()
+                        } else {
+                            format!("{name}.{k}")
+                        }
+                    })
+                    .find(|c| !used.contains(c))
+                    .unwrap_or(name);
+                used.insert(free.clone());
+                free
+            };
+            SceneObject { name, triangles }
+        })
+        .collect()
+}
+
+/// The kind of a shape as the scene file spells it (`mesh`, `sphere`, ...).
+fn shape_kind(s: &ShapeDesc) -> &'static str {
+    match s {
+        ShapeDesc::Mesh { .. } => "mesh",
+        ShapeDesc::Sphere { .. } => "sphere",
+        ShapeDesc::Plane { .. } => "plane",
+        ShapeDesc::Table { .. } => "table",
+        ShapeDesc::Box { .. } => "box",
     }
 }
 
 /// `shapes[i] (kind)`, naming a shape in errors.
 /// How messages name shape `i` of a scene file: `shapes[1] (sphere)`.
 pub fn shape_label(i: usize, s: &ShapeDesc) -> String {
-    let kind = match s {
-        ShapeDesc::Mesh { .. } => "mesh",
-        ShapeDesc::Sphere { .. } => "sphere",
-        ShapeDesc::Plane { .. } => "plane",
-        ShapeDesc::Table { .. } => "table",
-        ShapeDesc::Box { .. } => "box",
-    };
-    format!("shapes[{i}] ({kind})")
+    format!("shapes[{i}] ({})", shape_kind(s))
 }
 
 /// The first number of `v` (a JSON document) that is not a finite `f32`, with its field path
@@ -481,6 +602,18 @@ impl ShapeDesc {
     }
 
     fn validate_msg(&self) -> Result<(), String> {
+        if let Some(n) = self.name() {
+            if n.is_empty() || n.chars().count() > MAX_NAME_CHARS {
+                return Err(format!(
+                    "name {n:?} must have 1 to {MAX_NAME_CHARS} characters"
+                ));
+            }
+            if n.chars().any(|c| c.is_control() || c == '=') {
+                return Err(format!(
+                    "name {n:?} may not hold control characters or '=' (the command line's NAME=FILE)"
+                ));
+            }
+        }
         match self {
             ShapeDesc::Mesh {
                 fit,
@@ -504,6 +637,7 @@ impl ShapeDesc {
                 radius,
                 rings,
                 material,
+                ..
             } => {
                 check_point("center", *center)?;
                 check_length("radius", *radius)?;
@@ -515,6 +649,7 @@ impl ShapeDesc {
                 size,
                 divisions,
                 material,
+                ..
             } => {
                 check_point("center", *center)?;
                 check_length("size", *size)?;
@@ -526,6 +661,7 @@ impl ShapeDesc {
                 depth,
                 height,
                 material,
+                ..
             } => {
                 check_length("width", *width)?;
                 check_length("depth", *depth)?;
@@ -538,7 +674,9 @@ impl ShapeDesc {
                 }
                 check_material(material)
             }
-            ShapeDesc::Box { min, max, material } => {
+            ShapeDesc::Box {
+                min, max, material, ..
+            } => {
                 check_point("min", *min)?;
                 check_point("max", *max)?;
                 if !(0..3).all(|k| min[k] < max[k]) {
@@ -548,6 +686,17 @@ impl ShapeDesc {
                 }
                 check_material(material)
             }
+        }
+    }
+
+    /// The shape's `"name"`, if it has one.
+    pub fn name(&self) -> Option<&str> {
+        match self {
+            ShapeDesc::Mesh { name, .. }
+            | ShapeDesc::Sphere { name, .. }
+            | ShapeDesc::Plane { name, .. }
+            | ShapeDesc::Table { name, .. }
+            | ShapeDesc::Box { name, .. } => name.as_deref(),
         }
     }
 
@@ -651,10 +800,37 @@ impl EnvDesc {
 /// The maps are those of a mesh file's own materials (parallel to the materials), empty when
 /// the shape has none or overrides them.
 #[allow(clippy::type_complexity)]
-fn build_shape(
-    s: &ShapeDesc,
-    opts: &LoadOptions,
-) -> Result<(TriMesh, Vec<Material>, Vec<MaterialMaps>), SceneError> {
+/// A built shape: its mesh, materials, the maps its file brought, and its file's objects
+/// (empty for a procedural shape, or a mesh whose objects could not be followed).
+type BuiltShape = (
+    TriMesh,
+    Vec<Material>,
+    Vec<MaterialMaps>,
+    Vec<io::MeshObject>,
+);
+
+/// The objects of triangles whose objects (indices into `objects`) are `owner`, each
+/// triangle become `growth` consecutive ones (midpoint subdivision); emptied objects vanish.
+fn objects_of_owners(
+    owner: &[usize],
+    growth: usize,
+    objects: &[io::MeshObject],
+) -> Vec<io::MeshObject> {
+    let mut out: Vec<io::MeshObject> = Vec::new();
+    for (t, &k) in owner.iter().enumerate() {
+        let end = ((t + 1) * growth) as u32;
+        match out.last_mut() {
+            Some(o) if o.name == objects[k].name => o.triangles.end = end,
+            _ => out.push(io::MeshObject {
+                name: objects[k].name.clone(),
+                triangles: (t * growth) as u32..end,
+            }),
+        }
+    }
+    out
+}
+
+fn build_shape(s: &ShapeDesc, opts: &LoadOptions) -> Result<BuiltShape, SceneError> {
     let one =
         |m: &Option<MaterialDesc>| vec![m.as_ref().map_or_else(Material::default, |d| d.material)];
     Ok(match s {
@@ -664,6 +840,7 @@ fn build_shape(
             weld,
             material,
             subdivide,
+            ..
         } => {
             let levels = subdivide.unwrap_or(0);
             let growth = 1u64 << (2 * levels);
@@ -677,8 +854,20 @@ fn build_shape(
                 eprintln!("warning: {w}");
             }
             let mut mesh = loaded.mesh;
+            // The object of each triangle, following the triangles through welding.
+            let mut owner: Vec<usize> = Vec::with_capacity(mesh.triangle_count());
+            for (k, o) in loaded.objects.iter().enumerate() {
+                owner.extend(o.triangles.clone().map(|_| k));
+            }
             if let Some(eps) = *weld {
                 mesh = meshops::weld(&mesh, eps);
+                if owner.len() == mesh.indices.len() {
+                    let mut tris = mesh.indices.iter();
+                    owner.retain(|_| {
+                        tris.next()
+                            .is_some_and(|&t| !meshops::is_degenerate(&mesh, t))
+                    });
+                }
                 meshops::drop_degenerate(&mut mesh);
                 meshops::remove_unused_vertices(&mut mesh);
                 mesh.normals = meshops::smooth_normals(&mesh, meshops::NormalWeighting::Angle);
@@ -712,18 +901,26 @@ fn build_shape(
                 }
                 None => (loaded.materials, loaded.maps),
             };
-            (mesh, mats, maps)
+            let growth = 1usize << (2 * levels);
+            let objects = if owner.len() * growth == mesh.triangle_count() {
+                objects_of_owners(&owner, growth, &loaded.objects)
+            } else {
+                Vec::new()
+            };
+            (mesh, mats, maps, objects)
         }
         ShapeDesc::Sphere {
             center,
             radius,
             rings,
             material,
+            ..
         } => {
             let r = rings.unwrap_or(DEFAULT_RINGS);
             (
                 shapes::uv_sphere(Vec3::from(*center), *radius, r, 2 * r),
                 one(material),
+                Vec::new(),
                 Vec::new(),
             )
         }
@@ -732,6 +929,7 @@ fn build_shape(
             size,
             divisions,
             material,
+            ..
         } => (
             shapes::ground_plane(
                 Vec3::from(*center),
@@ -740,29 +938,35 @@ fn build_shape(
             ),
             one(material),
             Vec::new(),
+            Vec::new(),
         ),
         ShapeDesc::Table {
             width,
             depth,
             height,
             material,
+            ..
         } => {
             let t = table_thickness(*width, *height);
             (
                 shapes::table(*width, *depth, *height, t, t),
                 one(material),
                 Vec::new(),
+                Vec::new(),
             )
         }
-        ShapeDesc::Box { min, max, material } => (
+        ShapeDesc::Box {
+            min, max, material, ..
+        } => (
             shapes::aabb_box(Vec3::from(*min), Vec3::from(*max), BOX_DIVISIONS),
             one(material),
             Vec::new(),
+            Vec::new(),
         ),
     })
-    .and_then(|(m, mats, maps)| {
+    .and_then(|(m, mats, maps, objects)| {
         meshops::validate(&m).map_err(|e| SceneError::invalid_mesh(shape_origin(s), e))?;
-        Ok((m, mats, maps))
+        Ok((m, mats, maps, objects))
     })
 }
 

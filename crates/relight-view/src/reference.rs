@@ -97,6 +97,7 @@ impl Reference {
                     materials,
                     env,
                     camera,
+                    objects: Vec::new(),
                 };
                 run(scene, &sh, &rx, &on_pass)
             })

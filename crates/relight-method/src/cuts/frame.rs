@@ -47,6 +47,32 @@ impl From<relight_scene::material::Material> for MaterialOverride {
     }
 }
 
+/// The maps a material of `--material` names, read from its file's folder (`None`: none).
+///
+/// # Errors
+/// [`MethodError::Settings`] naming the file and the problem (with the hint of
+/// `--material-allow-outside-paths` for a map outside the folder).
+pub(crate) fn load_override_maps(
+    o: &MaterialOverride,
+    allow_outside: bool,
+) -> Result<Option<MaterialMaps>, MethodError> {
+    let Some(d) = &o.desc.maps else {
+        return Ok(None);
+    };
+    let policy = PathPolicy { allow_outside };
+    MaterialMaps::load(d, &o.desc.material, &o.origin, &policy)
+        .map(Some)
+        .map_err(|e| {
+            let hint = match e {
+                SceneError::OutsideFolder { .. } => {
+                    " (for the maps of --material: --material-allow-outside-paths)"
+                }
+                _ => "",
+            };
+            MethodError::Settings(format!("--material: {e}{hint}"))
+        })
+}
+
 /// Settings of the `cuts` frame.
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "cli", derive(clap::Args))]
@@ -62,13 +88,19 @@ pub struct CutsFrameSettings {
     #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_LIGHT_SIGMA))]
     pub light_sigma: f32,
     /// Render every surface with this material instead of the scene's (and its maps, which
-    /// the bundle holds; nothing of the materials is baked): a material as JSON (e.g. '{"type": "ggx_conductor", "specular":
-    /// [0.9, 0.6, 0.3], "alpha": 0.1}') or a .json file holding one. It may name texture
-    /// and normal maps ("maps": {"diffuse": "albedo.png", "normal": "n.png"}, paths relative
-    /// to the file's folder, which they may not leave); the bake's mesh needs texture
-    /// coordinates then.
-    #[cfg_attr(feature = "cli", arg(long, value_name = "MATERIAL_JSON", value_parser = crate::parse_material_override))]
+    /// the bundle holds; nothing of the materials is baked). Set from the command line's
+    /// `--material` by [`super::apply_material_edits`].
+    #[cfg_attr(feature = "cli", arg(skip))]
     pub material: Option<MaterialOverride>,
+    /// Replace the materials after the bake (nothing of the materials is baked): a bare
+    /// MATERIAL for every surface, or NAME=MATERIAL (repeatable) for the object NAME alone
+    /// (`relight info` lists the names), the others keeping theirs. MATERIAL is a material as
+    /// JSON (e.g. '{"type": "ggx_conductor", "specular": [0.9, 0.6, 0.3], "alpha": 0.1}') or
+    /// a .json file holding one. It may name texture and normal maps ("maps": {"diffuse":
+    /// "albedo.png", "normal": "n.png"}, paths relative to the file's folder, which they may
+    /// not leave); the bake's mesh needs texture coordinates then.
+    #[cfg_attr(feature = "cli", arg(long = "material", value_name = "[NAME=]MATERIAL_JSON", value_parser = super::parse_material_edit))]
+    pub materials: Vec<super::MaterialEdit>,
     /// Let the maps of `--material` lead outside the material file's folder (absolute paths,
     /// `..`, symbolic links out of it).
     #[cfg_attr(feature = "cli", arg(long))]
@@ -95,6 +127,7 @@ impl Default for CutsFrameSettings {
             light_cut: 256,
             light_sigma: DEFAULT_LIGHT_SIGMA,
             material: None,
+            materials: Vec::new(),
             material_allow_outside_paths: false,
             cluster_spread: true,
             light: PointLightArgs::default(),
@@ -133,36 +166,25 @@ impl<'a> CutsFrame<'a> {
     /// applied (a mesh without texture coordinates).
     pub fn new(baked: &'a CutsBaked, s: &CutsFrameSettings) -> Result<Self, MethodError> {
         let n = baked.scene.materials.len();
+        if !s.materials.is_empty() {
+            return Err(MethodError::Settings(
+                "--material edits are applied to the bake before its frame (cuts::apply_material_edits)".into(),
+            ));
+        }
         let (materials, maps) = match &s.material {
             Some(o) => {
                 let m = o.desc.material;
                 m.validate()
                     .map_err(|e| MethodError::Settings(format!("material {m:?}: {e}")))?;
-                let maps = match &o.desc.maps {
+                let maps = match load_override_maps(o, s.material_allow_outside_paths)? {
                     None => SceneMaps::default(),
-                    Some(d) => {
-                        let policy = PathPolicy {
-                            allow_outside: s.material_allow_outside_paths,
-                        };
-                        let loaded =
-                            MaterialMaps::load(d, &m, &o.origin, &policy).map_err(|e| {
-                                let hint = match e {
-                                    SceneError::OutsideFolder { .. } => {
-                                        " (for the maps of --material: --material-allow-outside-paths)"
-                                    }
-                                    _ => "",
-                                };
-                                MethodError::Settings(format!("--material: {e}{hint}"))
-                            })?;
-                        SceneMaps::new(&baked.scene.mesh, vec![Some(Arc::new(loaded)); n]).map_err(
-                            |e| {
-                                MethodError::Settings(format!(
-                                    "--material {}: {e}",
-                                    o.origin.display()
-                                ))
-                            },
-                        )?
-                    }
+                    Some(loaded) => SceneMaps::new(
+                        &baked.scene.mesh,
+                        vec![Some(Arc::new(loaded)); n],
+                    )
+                    .map_err(|e| {
+                        MethodError::Settings(format!("--material {}: {e}", o.origin.display()))
+                    })?,
                 };
                 (vec![m; n], maps)
             }

@@ -525,3 +525,85 @@ fn sampling_travels_in_the_bundle(b: &CutsBaked) {
         assert!(msg.contains(want) && msg.contains(name), "{what}: {msg}");
     }
 }
+
+/// The scene's objects travel in the bundle, damaged ones are refused by name, a bundle
+/// without them reads one object per material, and a named material edit points only its
+/// object's triangles at the new material.
+#[test]
+fn objects_travel_in_the_bundle_and_a_named_edit_repoints_one_object() {
+    let b = baked(false, None);
+    let names: Vec<&str> = b.scene.objects.iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["sphere1", "plane2"]);
+    let back = round_trip(&b).unwrap();
+    assert_eq!(back.scene.objects, b.scene.objects);
+    let t = b.scene.mesh.triangle_count() as u32;
+    let s1 = b.scene.objects[0].triangles.end;
+    for (json, what) in [
+        (
+            format!(r#"[{{"name":"a","first":0,"count":{t}}},{{"name":"b","first":0,"count":1}}]"#),
+            "do not follow on",
+        ),
+        (
+            format!(
+                r#"[{{"name":"a","first":0,"count":{s1}}},{{"name":"a","first":{s1},"count":{}}}]"#,
+                t - s1
+            ),
+            "given twice",
+        ),
+        (
+            format!(r#"[{{"name":"a","first":0,"count":{}}}]"#, t - 1),
+            "cover triangles",
+        ),
+        (r#"[{"name":"a"}]"#.to_string(), "'objects'"),
+    ] {
+        let e = corrupt(&b, |bundle| {
+            bundle.metadata.insert("objects".into(), json.clone());
+        });
+        assert!(e.contains("objects") && e.contains(what), "{what}: {e}");
+    }
+    let mut bundle = store(&b).unwrap();
+    bundle.metadata.remove("objects");
+    let bytes = bundle.to_bytes();
+    let old = load(
+        &Bundle::from_bytes(Path::new("x.relight"), &bytes).unwrap(),
+        Path::new("x.relight"),
+    )
+    .unwrap();
+    let names: Vec<&str> = old.scene.objects.iter().map(|o| o.name.as_str()).collect();
+    assert_eq!(names, ["material0", "material1"]);
+
+    let edit = |object: &str| MaterialEdit {
+        object: Some(object.into()),
+        material: relight_scene::material::Material::Lambert {
+            albedo: glam::Vec3::new(0.1, 0.9, 0.1),
+        }
+        .into(),
+    };
+    let mut whole = Baked::Cuts(b.clone());
+    let mut s = CutsFrameSettings {
+        materials: vec![edit("plane2")],
+        ..Default::default()
+    };
+    apply_material_edits(&mut whole, &mut s).unwrap();
+    assert!(s.materials.is_empty() && s.material.is_none());
+    let scene = whole.scene();
+    assert_eq!(scene.materials.len(), 3);
+    let ids = &scene.mesh.material_ids;
+    assert!(ids[..s1 as usize].iter().all(|&i| i == 0));
+    assert!(ids[s1 as usize..].iter().all(|&i| i == 2));
+    whole
+        .frame(&FrameSettings::Cuts(s))
+        .expect("a frame of the edited bake");
+    let mut s = CutsFrameSettings {
+        materials: vec![edit("cube")],
+        ..Default::default()
+    };
+    let e = apply_material_edits(&mut Baked::Cuts(b.clone()), &mut s).unwrap_err();
+    assert!(e.to_string().contains("sphere1, plane2"), "{e}");
+    // Unapplied edits never reach a frame silently.
+    let s = CutsFrameSettings {
+        materials: vec![edit("plane2")],
+        ..Default::default()
+    };
+    assert!(Baked::Cuts(b).frame(&FrameSettings::Cuts(s)).is_err());
+}

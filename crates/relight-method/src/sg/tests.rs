@@ -87,6 +87,7 @@ fn baked(f16: bool) -> SgBaked {
             mesh,
             materials: vec![PLASTIC],
             maps: Default::default(),
+            objects: Vec::new(),
         },
         bake: SgBake {
             view_frequency: 3,

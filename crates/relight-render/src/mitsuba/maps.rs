@@ -330,6 +330,7 @@ mod tests {
             materials,
             env: Environment::new(EnvMap::constant(Vec3::ONE)),
             camera: Camera::look_at([0.0, 1.0, 5.0], [0.0, 1.0, 0.0], 40.0, 8, 6),
+            objects: Vec::new(),
         }
     }
 

@@ -36,6 +36,7 @@ fn export_writes_one_ply_per_used_material_and_a_complete_json() {
             ..Environment::new(EnvMap::constant(Vec3::ONE))
         },
         camera: Camera::look_at([0.0, 1.0, 5.0], [0.0, 1.0, 0.0], 40.0, 8, 6),
+        objects: Vec::new(),
     };
     let dir = std::env::temp_dir().join(format!("relight-mitsuba-export-{}", std::process::id()));
     let json_path = export_mitsuba(&scene, &dir, 16, 3).unwrap();

@@ -110,6 +110,7 @@ fn path_traced(
         materials: materials.to_vec(),
         env: env.clone(),
         camera: camera(),
+        objects: Vec::new(),
     };
     let pts = crate::pathtrace::PtSettings {
         spp,

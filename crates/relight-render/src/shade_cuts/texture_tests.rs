@@ -151,6 +151,7 @@ fn textured_materials_chosen_after_the_bake_match_the_path_tracer() {
             maps,
             env: s.env.clone(),
             camera: s.camera,
+            objects: Vec::new(),
         };
         let pts = crate::pathtrace::PtSettings {
             spp: 256,
@@ -251,6 +252,7 @@ fn roughness_and_specular_maps_match_the_path_tracer() {
             maps,
             env: s.env.clone(),
             camera: s.camera,
+            objects: Vec::new(),
         };
         let pts = crate::pathtrace::PtSettings {
             spp: 256,

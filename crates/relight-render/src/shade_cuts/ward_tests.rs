@@ -80,6 +80,7 @@ fn ward_chosen_after_the_bake_matches_the_path_tracer_and_follows_its_tangent() 
             materials,
             env: env.clone(),
             camera,
+            objects: Vec::new(),
         };
         let pts = crate::pathtrace::PtSettings {
             spp: 256,

@@ -86,6 +86,7 @@ fn reference(f: &Fixture, light: PointLight, max_depth: i32, spp: u32) -> (Image
         materials: f.materials.clone(),
         env: Environment::new(EnvMap::constant(Vec3::ZERO)),
         camera: camera(),
+        objects: Vec::new(),
     };
     let s = PtSettings {
         spp,

@@ -55,6 +55,7 @@ fn sphere_scene() -> Scene {
             width: 64,
             height: 48,
         },
+        objects: Vec::new(),
     }
 }
 
@@ -96,6 +97,7 @@ fn shadowed_highlight_scene() -> Scene {
             width: 64,
             height: 48,
         },
+        objects: Vec::new(),
     }
 }
 

@@ -72,6 +72,7 @@ fn glossy_scene(width: u32, height: u32) -> Scene {
         ],
         env: Environment::new(EnvMap::latlong_from_fn(128, 64, smooth_env)),
         camera: Camera::look_at([0.0, 1.2, 2.6], [0.0, 0.4, 0.0], 40.0, width, height),
+        objects: Vec::new(),
     }
 }
 

@@ -63,6 +63,7 @@ pub fn ground_plane(min: Vec3, max: Vec3) -> ShapeDesc {
             }
             .into(),
         ),
+        name: None,
     }
 }
 
@@ -97,6 +98,7 @@ impl SceneDesc {
             weld: None,
             material: None,
             subdivide: None,
+            name: None,
         }];
         if ground {
             shapes.push(ground_plane(min, max));

@@ -143,7 +143,7 @@ fn procedural_triangle_counts_match_the_shapes() {
     .unwrap();
     for s in &shapes {
         s.validate().unwrap();
-        let (m, _, _) = build_shape(s, &LoadOptions::default()).unwrap();
+        let (m, _, _, _) = build_shape(s, &LoadOptions::default()).unwrap();
         assert_eq!(s.triangle_count(), Some(m.triangle_count() as u64), "{s:?}");
     }
 }
@@ -287,5 +287,70 @@ fn every_example_scene_reads_validates_and_builds() {
         if p.file_name() == Some(std::ffi::OsStr::new("million.json")) {
             assert!(n >= 1_000_000, "{}: {n} triangles", p.display());
         }
+    }
+}
+
+/// The names of a built scene's objects, after checking they cover its triangles.
+fn object_names(s: &Scene) -> Vec<String> {
+    crate::scene::validate_objects(&s.objects, s.mesh.triangle_count() as u32).unwrap();
+    s.objects.iter().map(|o| o.name.clone()).collect()
+}
+
+#[test]
+fn objects_are_named_by_the_scene_the_file_or_their_kind_and_place() {
+    let dir = temp_dir("scenenames");
+    // Two OBJ objects, the second subdivided with the mesh; then a one-object file.
+    std::fs::write(
+        dir.join("two.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\no a\nf 1 2 3\no b\nf 1 3 4\nf 1 2 4\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("one.obj"), "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").unwrap();
+    let build = |shapes: &str| {
+        let p = dir.join("s.json");
+        std::fs::write(&p, scene_json(shapes, CONSTANT)).unwrap();
+        SceneDesc::read(&p).and_then(|d| d.build(&p))
+    };
+    let s = build(
+        r#"{"type": "sphere", "center": [0, 0, 0], "radius": 1, "rings": 2},
+           {"type": "plane", "center": [0, 0, 0], "size": 1, "divisions": 1, "name": "floor"},
+           {"type": "mesh", "file": "two.obj", "subdivide": 1},
+           {"type": "mesh", "file": "one.obj", "name": "tri"},
+           {"type": "mesh", "file": "one.obj"},
+           {"type": "sphere", "center": [0, 0, 0], "radius": 1, "rings": 2, "name": "a"}"#,
+    )
+    .unwrap();
+    assert_eq!(
+        object_names(&s),
+        ["sphere1", "floor", "a.1", "b", "tri", "one", "a"]
+    );
+    // Subdivision makes each triangle four, in place: b keeps its two triangles' sixteen.
+    assert_eq!(s.objects[3].triangles.len(), 8);
+    assert_eq!(s.objects[2].triangles.len(), 4);
+    // A scene of one mesh keeps the file's names; of one shape, its "name" or kind.
+    let one = build(r#"{"type": "mesh", "file": "two.obj", "name": "x"}"#).unwrap();
+    assert_eq!(object_names(&one), ["a", "b"]);
+    let one = build(r#"{"type": "mesh", "file": "one.obj", "name": "x"}"#).unwrap();
+    assert_eq!(object_names(&one), ["one"]);
+    let one = build(SPHERE).unwrap();
+    assert_eq!(object_names(&one), ["sphere1"]);
+}
+
+#[test]
+fn a_name_given_twice_or_malformed_is_refused_naming_the_shapes() {
+    let named =
+        |n: &str| format!(r#"{{"type": "sphere", "center": [0, 0, 0], "radius": 1, "name": {n}}}"#);
+    let e = refused(&scene_json(
+        &format!("{}, {SPHERE}, {}", named("\"x\""), named("\"x\"")),
+        CONSTANT,
+    ));
+    assert!(
+        e.contains("shapes[0] (sphere) and shapes[2] (sphere)"),
+        "{e}"
+    );
+    assert!(e.contains("\"x\""), "{e}");
+    for bad in ["\"\"", "\"a=b\"", "\"a\\nb\""] {
+        let e = refused(&scene_json(&named(bad), CONSTANT));
+        assert!(e.contains("shapes[0] (sphere): name"), "{bad}: {e}");
     }
 }
