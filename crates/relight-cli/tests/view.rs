@@ -351,3 +351,61 @@ fn without_a_vulkan_driver_view_says_what_to_install_and_exits_1() {
         assert!(stdout(&o).contains(needle), "--help lacks {needle}");
     }
 }
+
+/// `relight view MODEL`: a model file is baked first (the bake's choices printed) into a
+/// cache under `XDG_CACHE_HOME`, then shown; the second view of the same file opens the
+/// cached bundle without baking.
+#[test]
+fn viewing_a_model_file_bakes_it_once_into_the_cache() {
+    if !cfg!(feature = "view") {
+        return no_view_feature("view MODEL");
+    }
+    let Some(x) = xvfb() else { return };
+    let d = tmpdir("view", "model");
+    std::fs::write(
+        d.join("pyramid.obj"),
+        "v -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nv 0 1.5 0\n\
+         f 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\nf 1 3 2\nf 1 4 3\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("s.txt"), "wait-frames 3\nscreenshot w.png\nquit\n").unwrap();
+    let cache = d.join("cache");
+    let run = || {
+        let adapter = std::env::var("WGPU_ADAPTER_NAME").unwrap_or_else(|_| "llvmpipe".into());
+        Command::new(env!("CARGO_BIN_EXE_relight"))
+            .current_dir(&d)
+            .args([
+                "view",
+                "pyramid.obj",
+                "--script",
+                "s.txt",
+                "--size",
+                "640x420",
+            ])
+            .env("DISPLAY", &x.display)
+            .env("XDG_CACHE_HOME", &cache)
+            .env_remove("WAYLAND_DISPLAY")
+            .env("WGPU_ADAPTER_NAME", adapter)
+            .output()
+            .expect("run relight view")
+    };
+    let o = run();
+    if no_vulkan(&o) {
+        return;
+    }
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("view: baking pyramid.obj first"), "{e}");
+    assert!(e.contains("method: sh"), "{e}");
+    let cached: Vec<_> = std::fs::read_dir(cache.join("relight/view"))
+        .unwrap()
+        .map(|f| f.unwrap().path())
+        .collect();
+    assert_eq!(cached.len(), 1, "{cached:?}");
+    assert!(d.join("w.png").is_file());
+    let o = run();
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("using the bake of pyramid.obj cached at"), "{e}");
+    assert!(!e.contains("baking"), "{e}");
+}
