@@ -214,6 +214,22 @@ fn gltf_error(path: &Path, e: gltf::Error) -> SceneError {
 /// (relight does not use them).
 fn validate(path: &Path, root: gltf::json::Root) -> Result<gltf::Document, SceneError> {
     use gltf::json::validation::{Error, Validate};
+    // The crate's primitive check reads the POSITION accessor before checking its index:
+    // check every attribute's index first (an index out of range would panic there).
+    let n = root.accessors.len();
+    for (i, m) in root.meshes.iter().enumerate() {
+        for (j, p) in m.primitives.iter().enumerate() {
+            if let Some((sem, a)) = p.attributes.iter().find(|(_, a)| a.value() >= n) {
+                return Err(SceneError::malformed(
+                    path,
+                    format!(
+                        "meshes[{i}].primitives[{j}]: attribute {sem:?} names accessor {}, but the file has {n}",
+                        a.value()
+                    ),
+                ));
+            }
+        }
+    }
     let mut errors = Vec::new();
     root.validate(&root, gltf::json::Path::new, &mut |p, e| {
         let p = p();

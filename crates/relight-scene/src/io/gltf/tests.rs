@@ -116,6 +116,22 @@ fn malformed_gltf_json_names_the_line() {
     assert!(e.contains("bad.gltf: line 3"), "{e}");
 }
 
+/// A POSITION attribute naming an accessor the file does not have is an error, not a panic
+/// in the `gltf` crate's validation (found by the fuzzer).
+#[test]
+fn an_attribute_naming_a_missing_accessor_is_an_error() {
+    let dir = temp_dir("gltfacc");
+    let p = dir.join("a.gltf");
+    std::fs::write(
+        &p,
+        r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}]}"#,
+    )
+    .unwrap();
+    let e = load_mesh(&p).unwrap_err().to_string();
+    assert!(e.contains("a.gltf") && e.contains("accessor 0"), "{e}");
+}
+
 #[test]
 fn truncated_gltf_is_an_error() {
     let dir = temp_dir("gltftrunc");
