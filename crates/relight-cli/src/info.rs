@@ -43,10 +43,10 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
             t.bytes.len()
         ));
     }
-    let objects = object_rows(baked.scene());
+    let objects = baked.scene().object_summaries();
     out.line(format!("  objects ({}):", objects.len()));
     for o in &objects {
-        let mats: Vec<String> = o.materials.iter().map(|m| m.short.clone()).collect();
+        let mats: Vec<String> = o.materials.iter().map(|m| m.short()).collect();
         out.line(format!(
             "    {:<16} {} vertices, {} triangles, {}",
             o.name,
@@ -92,18 +92,7 @@ pub fn run(a: Args, out: &Out) -> Result<()> {
         "vertices": baked.scene().mesh.vertex_count(),
         "triangles": baked.scene().mesh.triangle_count(),
         "record": baked.record(),
-        "objects": objects.iter().map(|o| json!({
-            "name": o.name,
-            "first_triangle": o.first,
-            "triangles": o.triangles,
-            "vertices": o.vertices,
-            "materials": o.materials.iter().map(|m| json!({
-                "index": m.index,
-                "kind": m.kind,
-                "parameters": m.parameters,
-                "maps": m.maps,
-            })).collect::<Vec<_>>(),
-        })).collect::<Vec<_>>(),
+        "objects": objects,
         "metadata": b.metadata,
         "tensors": tensors,
         "sg": details["sg"],
@@ -163,100 +152,4 @@ pub fn project(a: ProjectArgs, out: &Out) -> Result<()> {
         json!({"command": "project", "env": a.env, "sh_order": a.sh_order, "coefficients": rows}),
     );
     Ok(())
-}
-
-/// One object of a bundle as `info` lists it.
-struct ObjectRow {
-    name: String,
-    first: u32,
-    triangles: u32,
-    /// Distinct vertices its triangles use.
-    vertices: usize,
-    materials: Vec<MaterialRow>,
-}
-
-/// A material of an object.
-struct MaterialRow {
-    index: u32,
-    kind: &'static str,
-    /// The material's parameters (its JSON without `type`).
-    parameters: serde_json::Value,
-    /// Whether the material has texture or normal maps.
-    maps: bool,
-    /// `kind(parameters)` in one short line.
-    short: String,
-}
-
-/// The objects of a baked scene with their vertex counts and materials.
-fn object_rows(scene: &relight_method::BakedScene) -> Vec<ObjectRow> {
-    let mesh = &scene.mesh;
-    scene
-        .objects
-        .iter()
-        .map(|o| {
-            let range = o.triangles.start as usize..o.triangles.end as usize;
-            let mut verts: Vec<u32> = mesh.indices[range.clone()]
-                .iter()
-                .flatten()
-                .copied()
-                .collect();
-            verts.sort_unstable();
-            verts.dedup();
-            let mut ids: Vec<u32> = mesh.material_ids[range].to_vec();
-            ids.sort_unstable();
-            ids.dedup();
-            let materials = ids
-                .into_iter()
-                .filter_map(|i| scene.materials.get(i as usize).map(|m| (i, m)))
-                .map(|(index, m)| {
-                    let mut parameters = serde_json::to_value(m).unwrap_or_default();
-                    if let Some(obj) = parameters.as_object_mut() {
-                        obj.remove("type");
-                    }
-                    let maps = scene.maps.of(index).is_some();
-                    let short = format!(
-                        "{}({}){}",
-                        m.kind_name(),
-                        short_params(&parameters),
-                        if maps { " with maps" } else { "" }
-                    );
-                    MaterialRow {
-                        index,
-                        kind: m.kind_name(),
-                        parameters,
-                        maps,
-                        short,
-                    }
-                })
-                .collect();
-            ObjectRow {
-                name: o.name.clone(),
-                first: o.triangles.start,
-                triangles: o.triangles.len() as u32,
-                vertices: verts.len(),
-                materials,
-            }
-        })
-        .collect()
-}
-
-/// `key=value` pairs of a material's parameters, numbers as the `f32` they are.
-fn short_params(v: &serde_json::Value) -> String {
-    fn value(v: &serde_json::Value) -> String {
-        match v {
-            serde_json::Value::Number(n) => {
-                n.as_f64().map_or(n.to_string(), |x| (x as f32).to_string())
-            }
-            serde_json::Value::Array(a) => {
-                format!("[{}]", a.iter().map(value).collect::<Vec<_>>().join(","))
-            }
-            other => other.to_string(),
-        }
-    }
-    v.as_object().map_or_else(String::new, |o| {
-        o.iter()
-            .map(|(k, x)| format!("{k}={}", value(x)))
-            .collect::<Vec<_>>()
-            .join(" ")
-    })
 }

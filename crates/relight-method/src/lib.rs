@@ -44,6 +44,7 @@ mod error;
 pub mod hybrid;
 pub mod job;
 pub mod memory;
+pub mod objects;
 mod prefiltered;
 pub mod sg;
 pub mod sh;
